@@ -1,0 +1,65 @@
+// Where the robot base was: the motion source interface and a sampled implementation (DESIGN §3).
+#pragma once
+
+#include <mrpt/poses/CPose2D.h>
+#include <mrpt/poses/CPose3D.h>
+#include <Eigen/Geometry>
+
+#include <vector>
+
+#include "lidar_deskew/core/types.h"
+
+namespace lidar_deskew::core {
+
+/// Answers "pose of the base in the fixed frame at time t". The tf2 adapter, the bag tool, tests and
+/// tools implement it.
+class MotionSource {
+ public:
+  virtual ~MotionSource() = default;
+
+  /// Pose of the base frame in the fixed frame at `time` [ns].
+  /// Throws MotionUnavailable when `time` is outside what the source covers. Never extrapolates.
+  virtual mrpt::poses::CPose3D basePose(TimeNs time) const = 0;
+
+  /// Appends the times [ns] strictly inside (begin, end) at which the source's motion model changes
+  /// slope (its own samples). The correction places interpolation knots there too, so piecewise
+  /// motion is reproduced exactly. Default: none known.
+  virtual void appendSampleTimes(TimeNs begin, TimeNs end, std::vector<TimeNs>& times) const;
+};
+
+/// Interpolates between two poses like tf2 does: translation linearly, rotation by slerp on the
+/// shortest arc. `fraction` in [0, 1]: 0 gives `from`, 1 gives `to`.
+mrpt::poses::CPose3D interpolatePose(const mrpt::poses::CPose3D& from, const mrpt::poses::CPose3D& to,
+                                     double fraction);
+
+/// A motion source over time-stamped pose samples, interpolated between neighbours like tf2
+/// (interpolatePose). For planar (CPose2D) samples this is SE(2) interpolation: x, y linear, yaw
+/// along the shorter way. Exact at the samples; times outside [first, last] are not covered.
+class PoseSamples final : public MotionSource {
+ public:
+  /// Appends a sample. Times must strictly increase; throws InvalidInput("time") otherwise, and
+  /// InvalidInput("pose") for non-finite poses.
+  void add(TimeNs time, const mrpt::poses::CPose3D& base_pose);
+  void add(TimeNs time, const mrpt::poses::CPose2D& base_pose);
+
+  void clear() { samples_.clear(); }
+  bool empty() const { return samples_.empty(); }
+  std::size_t size() const { return samples_.size(); }
+  /// [ns] first / last sample time. Precondition: not empty.
+  TimeNs firstTime() const { return samples_.front().time; }
+  TimeNs lastTime() const { return samples_.back().time; }
+  /// True when basePose(time) would answer.
+  bool covers(TimeNs time) const;
+
+  mrpt::poses::CPose3D basePose(TimeNs time) const override;
+  void appendSampleTimes(TimeNs begin, TimeNs end, std::vector<TimeNs>& times) const override;
+
+ private:
+  struct Sample {
+    TimeNs time;
+    mrpt::poses::CPose3D pose;
+  };
+  std::vector<Sample> samples_;
+};
+
+}  // namespace lidar_deskew::core

@@ -1,0 +1,114 @@
+// A small planar LIDAR simulator with closed-form truth, ROS-free. It shares no geometry code with the
+// correction (plain 2D trigonometry, no MRPT), so tests that compare the two are independent.
+#pragma once
+
+#include <Eigen/Core>
+
+#include <optional>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "lidar_deskew/core/scan.h"
+
+namespace lidar_deskew::sim {
+
+/// A planar pose: position [m] and heading [rad].
+struct Pose2 {
+  double x = 0.0;
+  double y = 0.0;
+  double yaw = 0.0;
+
+  /// This pose followed by `local` (local expressed in this pose's frame).
+  Pose2 compose(const Pose2& local) const;
+  /// A point given in this pose's frame, in the parent frame.
+  Eigen::Vector2d apply(const Eigen::Vector2d& local) const;
+  /// A point given in the parent frame, in this pose's frame.
+  Eigen::Vector2d applyInverse(const Eigen::Vector2d& global) const;
+};
+
+/// A wall: the line segment from a to b [m].
+struct Segment {
+  Eigen::Vector2d a;
+  Eigen::Vector2d b;
+};
+
+/// A 2D world of line segments.
+class World {
+ public:
+  void add(const Eigen::Vector2d& a, const Eigen::Vector2d& b) { segments_.push_back({a, b}); }
+  /// A closed polygon through `corners`.
+  void addPolygon(const std::vector<Eigen::Vector2d>& corners);
+  const std::vector<Segment>& segments() const { return segments_; }
+
+  /// Distance [m] along the unit ray from `origin` to the nearest wall, if any is hit.
+  std::optional<double> castRay(const Eigen::Vector2d& origin, const Eigen::Vector2d& direction) const;
+  /// Distance [m] from `point` to the nearest wall (infinity for an empty world).
+  double distanceTo(const Eigen::Vector2d& point) const;
+
+  /// A 12 x 8 m room centred on the origin, with a slanted wall across one corner and a 0.4 m pillar.
+  static World demoRoom();
+
+ private:
+  std::vector<Segment> segments_;
+};
+
+/// Base pose in the world at time t [s].
+class Trajectory {
+ public:
+  virtual ~Trajectory() = default;
+  virtual Pose2 pose(double t) const = 0;
+};
+
+/// Constant forward speed v [m/s] and yaw rate w [rad/s] from `start` at t = 0: an arc (a line for
+/// w = 0, a spin in place for v = 0), integrated in closed form.
+class ArcTrajectory final : public Trajectory {
+ public:
+  ArcTrajectory(const Pose2& start, double speed, double yaw_rate)
+      : start_(start), speed_(speed), yaw_rate_(yaw_rate) {}
+  Pose2 pose(double t) const override;
+
+ private:
+  Pose2 start_;
+  double speed_;
+  double yaw_rate_;
+};
+
+/// A rotating 2D LIDAR. Beams are evenly spaced in angle and in time: one revolution per scan period.
+struct LidarModel {
+  std::string name;
+  int beams = 360;
+  double field_of_view = 2.0 * M_PI;  ///< [rad] beams * |increment|
+  double rate = 10.0;                 ///< [Hz] scans per second (revolutions per second)
+  double range_sigma = 0.0;           ///< [m] Gaussian range noise (used when noise is on)
+  bool clockwise = false;             ///< angle_increment < 0
+  float range_min = 0.05f;            ///< [m]
+  float range_max = 30.0f;            ///< [m]
+
+  float angleIncrement() const;  ///< [rad], signed
+  float angleMin() const;        ///< [rad] first beam: -fov/2 (counter-clockwise) or +fov/2 (clockwise)
+  float timeIncrement() const;   ///< [s] revolution time * |increment| / 2pi
+
+  /// Paper Table 1 / 2: Hokuyo UTM-30LX 1440 beams 360 deg 40 Hz sigma 30 mm; Inmotion ILD26TRI
+  /// 360 beams 360 deg 8 Hz sigma 60 mm; UTM-30LX 1080 beams 270 deg 40 Hz sigma 30 mm.
+  static LidarModel utm30lx360();
+  static LidarModel ild26tri();
+  static LidarModel utm30lx270();
+};
+
+/// One simulated scan and its truth.
+struct SimulatedScan {
+  core::PlanarScan scan;                    ///< as the driver publishes it (stamp at the first beam)
+  std::vector<double> beam_times;           ///< [s] true time of every beam
+  std::vector<Eigen::Vector2d> world_hits;  ///< [m] true hit point per beam (NaN where no hit)
+};
+
+/// Casts every beam from the laser's true pose at that beam's own time: laser = base(t) (+) mount.
+/// `start_time` [s] is the first beam's time; the scan is stamped `epoch + start_time`.
+/// `noise`: Gaussian range noise of model.range_sigma when given; exact ranges when null.
+/// Beams with no hit within range_max get +inf.
+SimulatedScan simulateScan(const World& world, const Trajectory& trajectory, const Pose2& mount,
+                           const LidarModel& model, core::TimeNs epoch, double start_time,
+                           std::mt19937* noise = nullptr);
+
+}  // namespace lidar_deskew::sim

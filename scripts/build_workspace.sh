@@ -1,0 +1,15 @@
+#!/usr/bin/env bash
+# Builds the package with catkin_make in a workspace inside the repo's ignored .build/ folder
+# (.build/ws/src/lidar_deskew links back to the repo) and installs it to .build/ws/install.
+# Usage: scripts/build_workspace.sh [extra catkin_make arguments...]
+set -euo pipefail
+export PATH=/usr/bin:/bin:$PATH
+export PYTHONNOUSERSITE=1
+repo=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
+ws="$repo/.build/ws"
+mkdir -p "$ws/src"
+ln -sfn "$repo" "$ws/src/lidar_deskew"
+cd "$ws"
+jobs=${LIDAR_DESKEW_JOBS:-2}
+catkin_make -j"$jobs" -DCMAKE_BUILD_TYPE=Release "$@"
+catkin_make -j"$jobs" install "$@" >/dev/null

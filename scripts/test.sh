@@ -1,0 +1,13 @@
+#!/usr/bin/env bash
+# The whole test suite: installs what is missing, builds with catkin_make (tests included), installs,
+# and runs every test through CTest. Ends with CTest's summary; non-zero on any failure.
+set -euo pipefail
+export PATH=/usr/bin:/bin:$PATH
+export PYTHONNOUSERSITE=1
+repo=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
+bash "$repo/scripts/install_deps.sh"
+bash "$repo/scripts/build_workspace.sh" -DCATKIN_ENABLE_TESTING=ON
+cd "$repo/.build/ws"
+catkin_make -j"${LIDAR_DESKEW_JOBS:-2}" tests >/dev/null
+cd build
+ctest --output-on-failure -j"${LIDAR_DESKEW_JOBS:-2}"

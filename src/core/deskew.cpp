@@ -1,0 +1,418 @@
+#include "lidar_deskew/core/deskew.h"
+
+#include <mrpt/poses/Lie/SO.h>
+
+#include <algorithm>
+#include <cmath>
+
+#include "pose_eigen.h"
+
+namespace lidar_deskew::core {
+namespace {
+
+/// Smallest knot interval accepted [s]: bounds the knot count to 1e5 per second of sweep.
+constexpr double kMinKnotInterval = 1e-5;
+
+/// sin(x) and 1 - cos(x), exact to double precision (relative error < 1e-16). Short Taylor series
+/// for the small angles knots give (5 rad/s over 5 ms is 0.025 rad), the library beyond. Series
+/// coefficients are multiplied, not divided: the compiler may not turn x / c into x * (1 / c).
+inline void sinAndVersine(double x, double& sine, double& versine) {
+  const double x2 = x * x;
+  if (x2 <= 0.05 * 0.05) {
+    // next terms: x^9/9! < 6e-18, x^10/10! < 3e-20
+    sine = x * (1.0 - x2 * (1.0 / 6) * (1.0 - x2 * (1.0 / 20) * (1.0 - x2 * (1.0 / 42))));
+    versine = x2 * 0.5 * (1.0 - x2 * (1.0 / 12) * (1.0 - x2 * (1.0 / 30) * (1.0 - x2 * (1.0 / 56))));
+  } else {
+    sine = std::sin(x);
+    versine = 1.0 - std::cos(x);
+  }
+}
+
+/// True when `rotation` turns about z only.
+bool rotatesAboutZOnly(const Eigen::Matrix3d& rotation) {
+  constexpr double kTolerance = 1e-12;
+  return std::abs(rotation(0, 2)) <= kTolerance && std::abs(rotation(1, 2)) <= kTolerance &&
+         std::abs(rotation(2, 0)) <= kTolerance && std::abs(rotation(2, 1)) <= kTolerance;
+}
+
+/// The chain prefix ^L T_R (+) (fixed->base @ t_ref)^-1, composed with MRPT.
+mrpt::poses::CPose3D laserFromReferenceBase(TimeNs reference_time, const mrpt::poses::CPose3D& mount,
+                                            const MotionSource& motion) {
+  return (-mount) + (-motion.basePose(reference_time));
+}
+
+/// Exact mode: the whole chain (prefix (+) fixed->base @ t (+) mount) composed with MRPT per point.
+class ExactChain {
+ public:
+  ExactChain(TimeNs reference_time, const mrpt::poses::CPose3D& mount, const MotionSource& motion)
+      : prefix_(laserFromReferenceBase(reference_time, mount, motion)), mount_(mount), motion_(motion) {}
+
+  Eigen::Vector3d apply(TimeNs point_time, const Eigen::Vector3d& raw) const {
+    const mrpt::poses::CPose3D chain = prefix_ + motion_.basePose(point_time) + mount_;
+    Eigen::Vector3d corrected;
+    chain.composePoint(raw.x(), raw.y(), raw.z(), corrected.x(), corrected.y(), corrected.z());
+    return corrected;
+  }
+
+ private:
+  mrpt::poses::CPose3D prefix_;
+  const mrpt::poses::CPose3D& mount_;
+  const MotionSource& motion_;
+};
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------------------------
+// KnotTrajectory
+
+void KnotTrajectory::build(TimeNs origin, double span_begin, double span_end, TimeNs reference_time,
+                           double knot_interval, const mrpt::poses::CPose3D& mount,
+                           const MotionSource& motion) {
+  if (!(knot_interval >= kMinKnotInterval)) {
+    throw InvalidInput("knot_interval", "must be >= " + std::to_string(kMinKnotInterval) + " s here");
+  }
+  if (!(span_end >= span_begin))
+    throw InvalidInput("time_offset", "span end before span begin");
+
+  // Knot times: both ends, every knot_interval between, and the source's own sample times.
+  const TimeNs begin_time = origin + secondsToNs(span_begin);
+  const TimeNs end_time = origin + secondsToNs(span_end);
+  std::vector<TimeNs>& times = scratch_times_;
+  times.clear();
+  times.push_back(begin_time);
+  const TimeNs step = secondsToNs(knot_interval);
+  for (TimeNs t = begin_time + step; t < end_time; t += step)
+    times.push_back(t);
+  motion.appendSampleTimes(begin_time, end_time, times);
+  times.push_back(end_time);
+  std::sort(times.begin(), times.end());
+  times.erase(std::unique(times.begin(), times.end()), times.end());
+
+  // The chain prefix, then one MRPT composition per knot.
+  const mrpt::poses::CPose3D laser_from_reference_base =
+      laserFromReferenceBase(reference_time, mount, motion);
+  mount_rotation_ = detail::rotationOf(mount);
+  mount_translation_ = detail::translationOf(mount);
+
+  knot_offsets_.resize(times.size());
+  std::vector<mrpt::poses::CPose3D> lefts;
+  lefts.reserve(times.size());
+  for (std::size_t k = 0; k < times.size(); ++k) {
+    knot_offsets_[k] = nsToSeconds(times[k] - origin);
+    lefts.push_back(laser_from_reference_base + motion.basePose(times[k]));
+  }
+
+  planar_ = rotatesAboutZOnly(mount_rotation_) && rotatesAboutZOnly(detail::rotationOf(lefts.back()));
+  const std::size_t segment_count = std::max<std::size_t>(1, times.size() - 1);
+  segments_.resize(segment_count);
+  for (std::size_t k = 0; k < segment_count; ++k) {
+    Segment& segment = segments_[k];
+    const mrpt::poses::CPose3D& left = lefts[k];
+    const mrpt::poses::CPose3D& next = lefts[std::min(k + 1, times.size() - 1)];
+    segment.begin_offset = knot_offsets_[k];
+    const double duration = nsToSeconds(times[std::min(k + 1, times.size() - 1)] - times[k]);
+    segment.inverse_duration = duration > 0.0 ? 1.0 / duration : 0.0;
+    segment.left_rotation = detail::rotationOf(left);
+    segment.left_translation = detail::translationOf(left);
+    segment.translation_step = detail::translationOf(next) - segment.left_translation;
+    // R_k^T R_k+1 = left_k^T left_k+1: the left factor R_M^T cancels.
+    const mrpt::math::CMatrixDouble33 step_rotation(segment.left_rotation.transpose() *
+                                                    detail::rotationOf(next));
+    const auto log = mrpt::poses::Lie::SO<3>::log(step_rotation);
+    const Eigen::Vector3d rotation_vector(log[0], log[1], log[2]);
+    segment.angle = rotation_vector.norm();
+    segment.axis =
+        segment.angle > 0.0 ? Eigen::Vector3d(rotation_vector / segment.angle) : Eigen::Vector3d::UnitZ();
+    segment.left_yaw_cos = segment.left_rotation(0, 0);
+    segment.left_yaw_sin = segment.left_rotation(1, 0);
+    segment.yaw_step = rotation_vector.z();
+    planar_ = planar_ && rotatesAboutZOnly(segment.left_rotation);
+  }
+  hint_ = 0;
+}
+
+std::size_t KnotTrajectory::segmentFor(double time_offset) const {
+  std::size_t k = hint_ < segments_.size() ? hint_ : 0;
+  while (k + 1 < segments_.size() && time_offset >= knot_offsets_[k + 1])
+    ++k;
+  while (k > 0 && time_offset < knot_offsets_[k])
+    --k;
+  hint_ = k;
+  return k;
+}
+
+Eigen::Vector3d KnotTrajectory::apply(double time_offset, const Eigen::Vector3d& raw) const {
+  const Segment& segment = segments_[segmentFor(time_offset)];
+  const double fraction =
+      std::clamp((time_offset - segment.begin_offset) * segment.inverse_duration, 0.0, 1.0);
+  const Eigen::Vector3d in_base = mount_rotation_ * raw + mount_translation_;
+  Eigen::Vector3d rotated = in_base;
+  if (segment.angle != 0.0) {
+    double sine, versine;
+    sinAndVersine(fraction * segment.angle, sine, versine);
+    const Eigen::Vector3d axis_cross = segment.axis.cross(in_base);
+    rotated += sine * axis_cross + versine * segment.axis.cross(axis_cross);
+  }
+  return segment.left_rotation * rotated + segment.left_translation + fraction * segment.translation_step;
+}
+
+void KnotTrajectory::correctPlanarScan(const PlanarScan& scan, double beam_period,
+                                       const std::vector<Eigen::Vector2d>& directions,
+                                       double reference_offset, DeskewedScan& out) const {
+  const std::size_t count = scan.ranges.size();
+  const ReturnTest is_return(scan);
+  const float* const ranges = scan.ranges.data();
+  const float* const intensities = scan.intensities.empty() ? nullptr : scan.intensities.data();
+  const Eigen::Vector2d* const unit = directions.data();
+  const double m00 = mount_rotation_(0, 0), m01 = mount_rotation_(0, 1);
+  const double m10 = mount_rotation_(1, 0), m11 = mount_rotation_(1, 1);
+  const double mount_x = mount_translation_.x(), mount_y = mount_translation_.y();
+  // Written in place: resize() only initialises elements beyond the previous size.
+  out.points.resize(count);
+  DeskewedPoint* write = out.points.data();
+
+  std::size_t beam = 0;
+  while (beam < count) {
+    // The knot segment of this beam, and the beams [beam, end) inside it.
+    const double first_offset = static_cast<double>(beam) * beam_period;
+    const std::size_t k = segmentFor(first_offset);
+    const Segment& segment = segments_[k];
+    const double lower = k > 0 ? knot_offsets_[k] : -INFINITY;
+    const double upper = k + 2 < knot_offsets_.size() ? knot_offsets_[k + 1] : INFINITY;
+    const auto inSegment = [&](std::size_t j) {
+      const double offset = static_cast<double>(j) * beam_period;
+      return offset >= lower && offset < upper;
+    };
+    std::size_t end = count;
+    if (beam_period != 0.0) {
+      const double boundary = (beam_period > 0.0 ? upper : lower) / beam_period;  // beam index at the bound
+      if (boundary < static_cast<double>(count))
+        end = std::max(beam + 1, static_cast<std::size_t>(boundary));
+      while (end > beam + 1 && !inSegment(end - 1))
+        --end;
+      while (end < count && inSegment(end))
+        ++end;
+    }
+    // Rot_z(left_yaw + s yaw_step) at the first beam and its step per beam; the translation
+    // left_translation + s translation_step likewise.
+    const double fraction_step = beam_period * segment.inverse_duration;
+    const double fraction = (first_offset - segment.begin_offset) * segment.inverse_duration;
+    double sine, versine;
+    sinAndVersine(fraction * segment.yaw_step, sine, versine);
+    double cosine_total = segment.left_yaw_cos - segment.left_yaw_cos * versine - segment.left_yaw_sin * sine;
+    double sine_total = segment.left_yaw_sin - segment.left_yaw_sin * versine + segment.left_yaw_cos * sine;
+    double step_sine, step_versine;
+    sinAndVersine(fraction_step * segment.yaw_step, step_sine, step_versine);
+    const double step_cosine = 1.0 - step_versine;
+    const double step_x = fraction_step * segment.translation_step.x();
+    const double step_y = fraction_step * segment.translation_step.y();
+    const double step_z = fraction_step * segment.translation_step.z();
+    double translation_x = segment.left_translation.x() + fraction * segment.translation_step.x();
+    double translation_y = segment.left_translation.y() + fraction * segment.translation_step.y();
+    double translation_z =
+        segment.left_translation.z() + fraction * segment.translation_step.z() + mount_translation_.z();
+
+    for (; beam < end; ++beam) {
+      const float range = ranges[beam];
+      if (is_return(range)) {
+        const double x = range * unit[beam].x(), y = range * unit[beam].y();
+        const double wx = m00 * x + m01 * y + mount_x;
+        const double wy = m10 * x + m11 * y + mount_y;
+        write->position.x() = cosine_total * wx - sine_total * wy + translation_x;
+        write->position.y() = sine_total * wx + cosine_total * wy + translation_y;
+        write->position.z() = translation_z;
+        write->time_offset = static_cast<double>(beam) * beam_period - reference_offset;
+        write->intensity = intensities ? intensities[beam] : 0.0f;
+        write->beam_index = static_cast<std::uint32_t>(beam);
+        ++write;
+      }
+      const double next_cosine = cosine_total * step_cosine - sine_total * step_sine;
+      sine_total = sine_total * step_cosine + cosine_total * step_sine;
+      cosine_total = next_cosine;
+      translation_x += step_x;
+      translation_y += step_y;
+      translation_z += step_z;
+    }
+  }
+  out.points.resize(static_cast<std::size_t>(write - out.points.data()));
+}
+
+// ---------------------------------------------------------------------------------------------------
+
+void DeskewConfig::validate() const {
+  if (!std::isfinite(knot_interval) || knot_interval < 0.0 ||
+      (knot_interval > 0.0 && knot_interval < kMinKnotInterval)) {
+    throw InvalidInput("knot_interval", "must be 0 (exact) or >= " + std::to_string(kMinKnotInterval) +
+                                            " s, got " + std::to_string(knot_interval));
+  }
+}
+
+PolarPoint toPolar(const Eigen::Vector3d& position) {
+  return {std::hypot(position.x(), position.y()), std::atan2(position.y(), position.x())};
+}
+
+std::vector<PolarPoint> toPolar(const std::vector<DeskewedPoint>& points) {
+  std::vector<PolarPoint> polar;
+  polar.reserve(points.size());
+  for (const DeskewedPoint& point : points)
+    polar.push_back(toPolar(point.position));
+  return polar;
+}
+
+Eigen::Vector3d deskewPointExact(const Eigen::Vector3d& raw, TimeNs point_time, TimeNs reference_time,
+                                 const mrpt::poses::CPose3D& mount, const MotionSource& motion) {
+  return ExactChain(reference_time, mount, motion).apply(point_time, raw);
+}
+
+ScanDeskewer::ScanDeskewer(const DeskewConfig& config) : config_(config) {
+  config_.validate();
+}
+
+void ScanDeskewer::updateBeamDirections(const PlanarScan& scan) {
+  const std::size_t count = scan.ranges.size();
+  if (beam_directions_.size() >= count && grid_angle_min_ == scan.angle_min &&
+      grid_angle_increment_ == scan.angle_increment) {
+    return;
+  }
+  grid_angle_min_ = scan.angle_min;
+  grid_angle_increment_ = scan.angle_increment;
+  beam_directions_.resize(count);
+  for (std::size_t i = 0; i < count; ++i) {
+    const double angle = static_cast<double>(scan.angle_min) + static_cast<double>(i) * scan.angle_increment;
+    beam_directions_[i] = Eigen::Vector2d(std::cos(angle), std::sin(angle));
+  }
+}
+
+void ScanDeskewer::deskew(const PlanarScan& scan, const BeamTiming& timing, const mrpt::poses::CPose3D& mount,
+                          const MotionSource& motion, DeskewedScan& out) {
+  try {
+    correctScan(scan, timing, mount, motion, out);
+  } catch (...) {
+    out.points.clear();
+    throw;
+  }
+}
+
+void ScanDeskewer::correctScan(const PlanarScan& scan, const BeamTiming& timing,
+                               const mrpt::poses::CPose3D& mount, const MotionSource& motion,
+                               DeskewedScan& out) {
+  validateScan(scan);
+  const std::size_t count = scan.ranges.size();
+  if (timing.beam_count != count) {
+    out.points.clear();
+    throw InvalidInput("ranges", "has " + std::to_string(count) + " beams but the timing was resolved for " +
+                                     std::to_string(timing.beam_count));
+  }
+  out.has_intensities = !scan.intensities.empty();
+  out.reference_time = timing.referenceTime(config_.reference);
+  const ReturnTest is_return(scan);
+  const bool any_return = std::any_of(scan.ranges.begin(), scan.ranges.end(), is_return);
+  if (!any_return) {  // nothing to correct: no motion needed
+    out.points.clear();
+    return;
+  }
+  updateBeamDirections(scan);
+  const double reference_offset = nsToSeconds(out.reference_time - timing.first_beam_time);
+
+  const auto emit = [&](std::size_t i, const Eigen::Vector3d& position) {
+    const double beam_offset = timing.beamOffset(i);
+    out.points.push_back({position, beam_offset - reference_offset,
+                          out.has_intensities ? scan.intensities[i] : 0.0f, static_cast<std::uint32_t>(i)});
+  };
+
+  if (config_.knot_interval == 0.0) {
+    const ExactChain chain(out.reference_time, mount, motion);
+    out.points.clear();
+    for (std::size_t i = 0; i < count; ++i) {
+      const float range = scan.ranges[i];
+      if (!is_return(range))
+        continue;
+      const Eigen::Vector3d raw(range * beam_directions_[i].x(), range * beam_directions_[i].y(), 0.0);
+      emit(i, chain.apply(timing.beamTime(i), raw));
+    }
+    return;
+  }
+
+  const double last_offset = timing.beamOffset(count - 1);
+  trajectory_.build(timing.first_beam_time, std::min(0.0, last_offset), std::max(0.0, last_offset),
+                    out.reference_time, config_.knot_interval, mount, motion);
+  if (trajectory_.planar()) {
+    trajectory_.correctPlanarScan(scan, timing.beam_period, beam_directions_, reference_offset, out);
+    return;
+  }
+  out.points.clear();
+  for (std::size_t i = 0; i < count; ++i) {
+    const float range = scan.ranges[i];
+    if (!is_return(range))
+      continue;
+    const Eigen::Vector3d raw(range * beam_directions_[i].x(), range * beam_directions_[i].y(), 0.0);
+    emit(i, trajectory_.apply(timing.beamOffset(i), raw));
+  }
+}
+
+TimeNs ScanDeskewer::deskewPoints(const std::vector<Eigen::Vector3d>& points,
+                                  const std::vector<double>& time_offsets, TimeNs origin,
+                                  const mrpt::poses::CPose3D& mount, const MotionSource& motion,
+                                  std::vector<Eigen::Vector3d>& corrected,
+                                  std::vector<double>& corrected_offsets,
+                                  std::vector<std::uint32_t>& kept_indices) {
+  try {
+    return correctPoints(points, time_offsets, origin, mount, motion, corrected, corrected_offsets,
+                         kept_indices);
+  } catch (...) {
+    corrected.clear();
+    corrected_offsets.clear();
+    kept_indices.clear();
+    throw;
+  }
+}
+
+TimeNs ScanDeskewer::correctPoints(const std::vector<Eigen::Vector3d>& points,
+                                   const std::vector<double>& time_offsets, TimeNs origin,
+                                   const mrpt::poses::CPose3D& mount, const MotionSource& motion,
+                                   std::vector<Eigen::Vector3d>& corrected,
+                                   std::vector<double>& corrected_offsets,
+                                   std::vector<std::uint32_t>& kept_indices) {
+  corrected.clear();
+  corrected_offsets.clear();
+  kept_indices.clear();
+  if (points.size() != time_offsets.size()) {
+    throw InvalidInput("time_offsets", "has " + std::to_string(time_offsets.size()) + " values for " +
+                                           std::to_string(points.size()) + " points");
+  }
+  double earliest = INFINITY;
+  double latest = -INFINITY;
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    if (!points[i].allFinite() || !std::isfinite(time_offsets[i]))
+      continue;
+    kept_indices.push_back(static_cast<std::uint32_t>(i));
+    earliest = std::min(earliest, time_offsets[i]);
+    latest = std::max(latest, time_offsets[i]);
+  }
+  if (kept_indices.empty())
+    return origin;
+  const double reference_offset = config_.reference == Reference::kStart ? earliest
+                                  : config_.reference == Reference::kEnd ? latest
+                                                                         : 0.5 * (earliest + latest);
+  const TimeNs reference_time = origin + secondsToNs(reference_offset);
+  const double exact_reference_offset = nsToSeconds(reference_time - origin);
+  corrected.reserve(kept_indices.size());
+  corrected_offsets.reserve(kept_indices.size());
+
+  if (config_.knot_interval == 0.0) {
+    const ExactChain chain(reference_time, mount, motion);
+    for (std::uint32_t i : kept_indices) {
+      corrected.push_back(chain.apply(origin + secondsToNs(time_offsets[i]), points[i]));
+      corrected_offsets.push_back(time_offsets[i] - exact_reference_offset);
+    }
+    return reference_time;
+  }
+  trajectory_.build(origin, earliest, latest, reference_time, config_.knot_interval, mount, motion);
+  for (std::uint32_t i : kept_indices) {
+    corrected.push_back(trajectory_.apply(time_offsets[i], points[i]));
+    corrected_offsets.push_back(time_offsets[i] - exact_reference_offset);
+  }
+  return reference_time;
+}
+
+}  // namespace lidar_deskew::core

@@ -1,0 +1,25 @@
+// Private helpers: MRPT poses <-> Eigen rotation / translation.
+#pragma once
+
+#include <mrpt/poses/CPose3D.h>
+#include <Eigen/Core>
+
+namespace lidar_deskew::core::detail {
+
+inline Eigen::Matrix3d rotationOf(const mrpt::poses::CPose3D& pose) {
+  return pose.getRotationMatrix().asEigen();
+}
+
+inline Eigen::Vector3d translationOf(const mrpt::poses::CPose3D& pose) {
+  return Eigen::Vector3d(pose.x(), pose.y(), pose.z());
+}
+
+inline mrpt::poses::CPose3D poseOf(const Eigen::Matrix3d& rotation, const Eigen::Vector3d& translation) {
+  mrpt::math::CMatrixDouble33 rotation_matrix(rotation);
+  mrpt::math::CVectorFixedDouble<3> xyz;
+  for (int axis = 0; axis < 3; ++axis)
+    xyz[axis] = translation[axis];
+  return mrpt::poses::CPose3D::FromRotationAndTranslation(rotation_matrix, xyz);
+}
+
+}  // namespace lidar_deskew::core::detail

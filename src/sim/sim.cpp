@@ -1,0 +1,148 @@
+#include "lidar_deskew/sim/sim.h"
+
+#include <cmath>
+#include <limits>
+
+namespace lidar_deskew::sim {
+namespace {
+
+double cross(const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
+  return a.x() * b.y() - a.y() * b.x();
+}
+
+}  // namespace
+
+Pose2 Pose2::compose(const Pose2& local) const {
+  const Eigen::Vector2d position = apply(Eigen::Vector2d(local.x, local.y));
+  return {position.x(), position.y(), yaw + local.yaw};
+}
+
+Eigen::Vector2d Pose2::apply(const Eigen::Vector2d& local) const {
+  const double c = std::cos(yaw), s = std::sin(yaw);
+  return {x + c * local.x() - s * local.y(), y + s * local.x() + c * local.y()};
+}
+
+Eigen::Vector2d Pose2::applyInverse(const Eigen::Vector2d& global) const {
+  const double c = std::cos(yaw), s = std::sin(yaw);
+  const double dx = global.x() - x, dy = global.y() - y;
+  return {c * dx + s * dy, -s * dx + c * dy};
+}
+
+void World::addPolygon(const std::vector<Eigen::Vector2d>& corners) {
+  for (std::size_t i = 0; i < corners.size(); ++i)
+    add(corners[i], corners[(i + 1) % corners.size()]);
+}
+
+std::optional<double> World::castRay(const Eigen::Vector2d& origin, const Eigen::Vector2d& direction) const {
+  std::optional<double> nearest;
+  for (const Segment& segment : segments_) {
+    // origin + r direction = a + u (b - a)
+    const Eigen::Vector2d edge = segment.b - segment.a;
+    const double denominator = cross(direction, edge);
+    if (denominator == 0.0)
+      continue;
+    const Eigen::Vector2d to_a = segment.a - origin;
+    const double range = cross(to_a, edge) / denominator;
+    const double u = cross(to_a, direction) / denominator;
+    if (range > 0.0 && u >= 0.0 && u <= 1.0 && (!nearest || range < *nearest))
+      nearest = range;
+  }
+  return nearest;
+}
+
+double World::distanceTo(const Eigen::Vector2d& point) const {
+  double nearest = std::numeric_limits<double>::infinity();
+  for (const Segment& segment : segments_) {
+    const Eigen::Vector2d edge = segment.b - segment.a;
+    const double u = std::clamp((point - segment.a).dot(edge) / edge.squaredNorm(), 0.0, 1.0);
+    nearest = std::min(nearest, (segment.a + u * edge - point).norm());
+  }
+  return nearest;
+}
+
+World World::demoRoom() {
+  World world;
+  // Outer walls with one corner cut by a slanted wall.
+  world.addPolygon({{-6.0, -4.0}, {6.0, -4.0}, {6.0, 2.5}, {4.5, 4.0}, {-6.0, 4.0}});
+  // A square pillar and a free-standing wall at 30 deg.
+  world.addPolygon({{2.0, -1.5}, {2.4, -1.5}, {2.4, -1.1}, {2.0, -1.1}});
+  world.add({-3.5, 1.0}, {-3.5 + 2.0 * std::cos(M_PI / 6), 1.0 + 2.0 * std::sin(M_PI / 6)});
+  return world;
+}
+
+Pose2 ArcTrajectory::pose(double t) const {
+  const double yaw = start_.yaw + yaw_rate_ * t;
+  double forward, left;  // displacement in the start frame
+  if (std::abs(yaw_rate_ * t) < 1e-9) {
+    forward = speed_ * t;
+    left = 0.5 * speed_ * yaw_rate_ * t * t;
+  } else {
+    const double radius = speed_ / yaw_rate_;
+    forward = radius * std::sin(yaw_rate_ * t);
+    left = radius * (1.0 - std::cos(yaw_rate_ * t));
+  }
+  const Eigen::Vector2d position = start_.apply({forward, left});
+  return {position.x(), position.y(), yaw};
+}
+
+float LidarModel::angleIncrement() const {
+  const float magnitude = static_cast<float>(field_of_view / beams);
+  return clockwise ? -magnitude : magnitude;
+}
+
+float LidarModel::angleMin() const {
+  const float half = static_cast<float>(field_of_view / 2.0);
+  return clockwise ? half : -half;
+}
+
+float LidarModel::timeIncrement() const {
+  return static_cast<float>(std::abs(static_cast<double>(angleIncrement())) / (2.0 * M_PI) / rate);
+}
+
+LidarModel LidarModel::utm30lx360() {
+  return {"UTM-30LX", 1440, 2.0 * M_PI, 40.0, 0.030, false, 0.1f, 30.0f};
+}
+LidarModel LidarModel::ild26tri() {
+  return {"ILD26TRI", 360, 2.0 * M_PI, 8.0, 0.060, false, 0.1f, 30.0f};
+}
+LidarModel LidarModel::utm30lx270() {
+  return {"UTM-30LX-270", 1080, 1.5 * M_PI, 40.0, 0.030, false, 0.1f, 30.0f};
+}
+
+SimulatedScan simulateScan(const World& world, const Trajectory& trajectory, const Pose2& mount,
+                           const LidarModel& model, core::TimeNs epoch, double start_time,
+                           std::mt19937* noise) {
+  SimulatedScan result;
+  core::PlanarScan& scan = result.scan;
+  scan.stamp = epoch + core::secondsToNs(start_time);
+  scan.angle_min = model.angleMin();
+  scan.angle_increment = model.angleIncrement();
+  scan.angle_max =
+      static_cast<float>(scan.angle_min + (model.beams - 1) * static_cast<double>(scan.angle_increment));
+  scan.time_increment = model.timeIncrement();
+  scan.scan_time = static_cast<float>(1.0 / model.rate);
+  scan.range_min = model.range_min;
+  scan.range_max = model.range_max;
+  std::normal_distribution<double> range_noise(0.0, model.range_sigma);
+  // Beam times as the scan message implies them (from its float fields), so truth and message agree.
+  const double first_time = core::nsToSeconds(scan.stamp - epoch);
+  for (int i = 0; i < model.beams; ++i) {
+    const double t = first_time + i * static_cast<double>(scan.time_increment);
+    const double angle = static_cast<double>(scan.angle_min) + i * static_cast<double>(scan.angle_increment);
+    const Pose2 laser = trajectory.pose(t).compose(mount);
+    const Eigen::Vector2d direction(std::cos(laser.yaw + angle), std::sin(laser.yaw + angle));
+    const std::optional<double> hit = world.castRay({laser.x, laser.y}, direction);
+    result.beam_times.push_back(t);
+    if (hit && *hit <= model.range_max) {
+      const double measured = noise ? *hit + range_noise(*noise) : *hit;
+      scan.ranges.push_back(static_cast<float>(measured));
+      result.world_hits.push_back(Eigen::Vector2d(laser.x, laser.y) + *hit * direction);
+    } else {
+      scan.ranges.push_back(std::numeric_limits<float>::infinity());
+      result.world_hits.push_back(Eigen::Vector2d::Constant(std::numeric_limits<double>::quiet_NaN()));
+    }
+  }
+  return result;
+}
+
+}  // namespace lidar_deskew::sim

@@ -1,0 +1,26 @@
+#!/usr/bin/env bash
+# The install tree (after catkin_make install) holds what users need: libraries, headers, executables,
+# nodelets.xml, launch files and the package manifest.
+set -euo pipefail
+prefix=${1:?install prefix}
+status=0
+for path in \
+  lib/liblidar_deskew_core.so \
+  lib/liblidar_deskew_sim.so \
+  lib/lidar_deskew/deskew_core_demo \
+  include/lidar_deskew/core/deskew.h \
+  include/lidar_deskew/core/rebin.h \
+  include/lidar_deskew/sim/sim.h \
+  share/lidar_deskew/package.xml \
+  share/lidar_deskew/nodelets.xml \
+  share/lidar_deskew/launch/core_demo.launch \
+  share/lidar_deskew/cmake/lidar_deskewConfig.cmake; do
+  if [ -e "$prefix/$path" ]; then echo "ok      $path"; else echo "MISSING $path"; status=1; fi
+done
+# the installed demo runs from the install tree
+if [ $status -eq 0 ]; then
+  # as a user would: source the install space, then run from it
+  (set +u; source "$prefix/setup.bash"; "$prefix/lib/lidar_deskew/deskew_core_demo" | grep -q "UTM-30LX") ||
+    { echo "installed demo did not run"; status=1; }
+fi
+exit $status

@@ -1,0 +1,325 @@
+// The correction (paper eq. 1-7) against closed-form truth from the simulator. Tolerances in mm.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "lidar_deskew/core/deskew.h"
+#include "support/truth.h"
+
+namespace lidar_deskew {
+namespace {
+
+using core::DeskewConfig;
+using core::DeskewedScan;
+using core::Reference;
+using core::ScanDeskewer;
+using core::TimeNs;
+using sim::ArcTrajectory;
+using sim::LidarModel;
+using sim::Pose2;
+
+constexpr TimeNs kEpoch = 1'700'000'000'000'000'000;
+constexpr double kMm = 1e-3;
+
+/// Raw and corrected error [m] of one simulated scan, corrected with `config` from `motion`.
+struct CaseResult {
+  test::ErrorStats raw;
+  test::ErrorStats corrected;
+  DeskewedScan scan;
+};
+
+CaseResult runCase(const sim::SimulatedScan& simulated, const sim::Trajectory& trajectory, const Pose2& mount,
+                   const core::MotionSource& motion, const DeskewConfig& config,
+                   const core::TimingConfig& timing_config = core::TimingConfig()) {
+  CaseResult result;
+  ScanDeskewer deskewer(config);
+  const core::BeamTiming timing = core::resolveTiming(simulated.scan, timing_config);
+  deskewer.deskew(simulated.scan, timing, test::toMrpt(mount), motion, result.scan);
+  const auto truth = test::truePointsAtReference(simulated, result.scan, trajectory, mount, kEpoch);
+  result.corrected = test::errorStats(test::pointErrors(result.scan, truth));
+  const auto raw = test::rawPoints(simulated.scan, result.scan);
+  std::vector<double> raw_errors;
+  for (std::size_t j = 0; j < raw.size(); ++j)
+    raw_errors.push_back((raw[j] - truth[j]).norm());
+  result.raw = test::errorStats(raw_errors);
+  return result;
+}
+
+DeskewConfig withReference(Reference reference, double knot_interval = 0.005) {
+  DeskewConfig config;
+  config.reference = reference;
+  config.knot_interval = knot_interval;
+  return config;
+}
+
+TEST(Deskew, StaticRobotGivesThePlainPolarProjection) {
+  const sim::World world = sim::World::demoRoom();
+  const ArcTrajectory still({1.0, -0.5, 0.7}, 0.0, 0.0);
+  const Pose2 mount{0.25, 0.05, 0.1};
+  const auto simulated = sim::simulateScan(world, still, mount, LidarModel::ild26tri(), kEpoch, 2.0);
+  const auto samples = test::sampleTrajectory(still, kEpoch, 1.9, 2.3, 0.02);
+  for (const double knot_interval : {0.005, 0.0}) {
+    ScanDeskewer deskewer(withReference(Reference::kStart, knot_interval));
+    DeskewedScan out;
+    deskewer.deskew(simulated.scan, core::resolveTiming(simulated.scan, {}), test::toMrpt(mount), samples,
+                    out);
+    ASSERT_EQ(out.points.size(), 360u);
+    const auto raw = test::rawPoints(simulated.scan, out);
+    for (std::size_t j = 0; j < out.points.size(); ++j) {
+      EXPECT_NEAR(out.points[j].position.x(), raw[j].x(), 1e-9);
+      EXPECT_NEAR(out.points[j].position.y(), raw[j].y(), 1e-9);
+      EXPECT_NEAR(out.points[j].position.z(), 0.0, 1e-9);
+      const core::PolarPoint polar = core::toPolar(out.points[j].position);
+      EXPECT_NEAR(polar.range, simulated.scan.ranges[out.points[j].beam_index], 1e-9);
+    }
+  }
+}
+
+// Paper case 1: the robot yaws at minus the scan's angular rate, so every beam looks the same way in
+// the world and sees one point. Raw: a circle of points; corrected: all on that one true point.
+TEST(Deskew, PaperCase1CounterRotationCollapsesToOnePoint) {
+  sim::World world;
+  world.add({3.0, -20.0}, {3.0, 20.0});  // a wall 3 m ahead
+  const LidarModel model = LidarModel::ild26tri();
+  const double scan_rate = 2.0 * M_PI * model.rate;  // [rad/s] of the beam
+  // Beam 0 looks along -pi in the laser frame: face the robot backwards so it looks along +x.
+  const ArcTrajectory facing({0.0, 0.0, M_PI}, 0.0, -scan_rate);
+  const Pose2 mount{0.0, 0.0, 0.0};
+  const auto simulated = sim::simulateScan(world, facing, mount, model, kEpoch, 0.0);
+  const auto samples = test::sampleTrajectory(facing, kEpoch, 0.0, 0.13, 0.001);
+  const CaseResult result = runCase(simulated, facing, mount, samples, withReference(Reference::kStart));
+  ASSERT_EQ(result.scan.points.size(), 360u);
+  // Every beam measured 3 m; raw points spread around the whole circle.
+  for (float range : simulated.scan.ranges)
+    EXPECT_NEAR(range, 3.0, 1e-5);
+  double raw_spread = 0.0;
+  const auto raw = test::rawPoints(simulated.scan, result.scan);
+  for (const auto& p : raw)
+    raw_spread = std::max(raw_spread, (p - raw.front()).norm());
+  EXPECT_GT(raw_spread, 5.9);
+  // Corrected: all on the one true point, world (3, 0), which is (-3, 0) in the laser frame at t_ref.
+  const Eigen::Vector2d true_point(-3.0, 0.0);
+  for (const auto& point : result.scan.points) {
+    EXPECT_LT((point.position.head<2>() - true_point).norm(), 0.01 * kMm);
+  }
+  EXPECT_LT(result.corrected.max, 0.01 * kMm);
+}
+
+// Paper case 2: driving at v toward a wall perpendicular to the motion. Beam i at time t_i sees the
+// wall from x = v t_i, so its raw point has x = D - v t_i: the raw wall tilts by v * sweep time.
+TEST(Deskew, PaperCase2WallAheadIsTiltedRawAndStraightCorrected) {
+  const double distance = 4.0, speed = 1.5;
+  sim::World world;
+  world.add({distance, -40.0}, {distance, 40.0});
+  const LidarModel model = LidarModel::ild26tri();
+  const ArcTrajectory drive({0.0, 0.0, 0.0}, speed, 0.0);
+  const Pose2 mount{0.0, 0.0, 0.0};
+  const auto simulated = sim::simulateScan(world, drive, mount, model, kEpoch, 0.0);
+  const auto samples = test::sampleTrajectory(drive, kEpoch, 0.0, 0.13, 0.02);
+  const CaseResult result = runCase(simulated, drive, mount, samples, withReference(Reference::kStart));
+  ASSERT_GT(result.scan.points.size(), 150u);
+
+  const auto raw = test::rawPoints(simulated.scan, result.scan);
+  double raw_min_x = INFINITY, raw_max_x = -INFINITY;
+  for (std::size_t j = 0; j < raw.size(); ++j) {
+    const double t = simulated.beam_times[result.scan.points[j].beam_index];
+    EXPECT_NEAR(raw[j].x(), distance - speed * t, 0.01 * kMm);  // the predicted tilt
+    raw_min_x = std::min(raw_min_x, raw[j].x());
+    raw_max_x = std::max(raw_max_x, raw[j].x());
+    EXPECT_NEAR(result.scan.points[j].position.x(), distance, 0.01 * kMm);  // straight, at D at t_ref
+  }
+  // The wall is seen from beam ~98 (-82 deg) to ~262 (+82 deg): 164 beams of 0.125/360 s at 1.5 m/s.
+  EXPECT_NEAR(raw_max_x - raw_min_x,
+              speed * (result.scan.points.back().time_offset - result.scan.points.front().time_offset),
+              0.01 * kMm);
+  EXPECT_GT(raw_max_x - raw_min_x, 0.08);
+}
+
+struct ArcCase {
+  LidarModel model;
+  double speed;     // [m/s]
+  double yaw_rate;  // [rad/s]
+};
+
+class ArcWithMountOffset : public ::testing::TestWithParam<ArcCase> {};
+
+// v and w together, laser 0.25 m ahead, 0.05 m left and turned 0.1 rad on the base. Dense pose
+// samples (every 0.5 ms) are exact here to well below 1 um.
+TEST_P(ArcWithMountOffset, CorrectedErrorBelowATenthOfAMillimetre) {
+  const ArcCase& param = GetParam();
+  const sim::World world = sim::World::demoRoom();
+  const ArcTrajectory arc({-1.0, -0.5, 0.3}, param.speed, param.yaw_rate);
+  const Pose2 mount{0.25, 0.05, 0.1};
+  const auto simulated = sim::simulateScan(world, arc, mount, param.model, kEpoch, 0.0);
+  const auto samples = test::sampleTrajectory(arc, kEpoch, 0.0, 1.0 / param.model.rate + 0.01, 0.0005);
+  for (const double knot_interval : {0.005, 0.0}) {
+    for (const Reference reference : {Reference::kStart, Reference::kMiddle, Reference::kEnd}) {
+      const CaseResult result =
+          runCase(simulated, arc, mount, samples, withReference(reference, knot_interval));
+      ASSERT_GT(result.scan.points.size(), static_cast<std::size_t>(param.model.beams) * 9 / 10);
+      EXPECT_LT(result.corrected.max, 0.1 * kMm)
+          << param.model.name << " knots " << knot_interval << " ref " << core::toString(reference);
+      EXPECT_GT(result.raw.max, 100 * kMm);  // the distortion is real: decimetres
+    }
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(PaperSensors, ArcWithMountOffset,
+                         ::testing::Values(ArcCase{LidarModel::utm30lx360(), 6.0, 5.0},
+                                           ArcCase{LidarModel::ild26tri(), 6.0, 5.0},
+                                           ArcCase{LidarModel::ild26tri(), 1.5, 2.0}));
+
+// With a continuous motion source, knots every h and linear interpolation between them cut the arc's
+// corners by at most the chord sagitta v w h^2 / 8 (rotation at constant rate is interpolated exactly).
+TEST(Deskew, KnotsOnAContinuousArcStayWithinTheChordBound) {
+  const sim::World world = sim::World::demoRoom();
+  const double speed = 6.0, yaw_rate = 5.0, knot_interval = 0.005;
+  const ArcTrajectory arc({-1.0, -0.5, 0.3}, speed, yaw_rate);
+  const Pose2 mount{0.25, 0.05, 0.1};
+  const LidarModel model = LidarModel::ild26tri();
+  const auto simulated = sim::simulateScan(world, arc, mount, model, kEpoch, 0.0);
+  const test::ClosedFormMotion motion(arc, kEpoch, 0.0, 0.2);
+  const CaseResult knots =
+      runCase(simulated, arc, mount, motion, withReference(Reference::kStart, knot_interval));
+  const CaseResult exact = runCase(simulated, arc, mount, motion, withReference(Reference::kStart, 0.0));
+  const double sagitta = speed * yaw_rate * knot_interval * knot_interval / 8.0;  // 94 um
+  EXPECT_LT(knots.corrected.max, sagitta + 0.001 * kMm);
+  EXPECT_GT(knots.corrected.max, 0.2 * sagitta);  // the bound is tight: the error is really there
+  EXPECT_LT(exact.corrected.max, 0.001 * kMm);
+}
+
+TEST(Deskew, ClockwiseScan) {
+  LidarModel model = LidarModel::ild26tri();
+  model.clockwise = true;
+  const ArcTrajectory arc({-1.0, -0.5, 0.3}, 1.5, 2.0);
+  const Pose2 mount{0.25, 0.05, 0.1};
+  const auto simulated = sim::simulateScan(sim::World::demoRoom(), arc, mount, model, kEpoch, 0.0);
+  ASSERT_LT(simulated.scan.angle_increment, 0.0f);
+  const auto samples = test::sampleTrajectory(arc, kEpoch, 0.0, 0.13, 0.0005);
+  const CaseResult result = runCase(simulated, arc, mount, samples, withReference(Reference::kStart));
+  EXPECT_EQ(result.scan.points.size(), 360u);
+  EXPECT_LT(result.corrected.max, 0.1 * kMm);
+  EXPECT_GT(result.raw.max, 50 * kMm);
+}
+
+TEST(Deskew, Sensor270Degrees) {
+  const LidarModel model = LidarModel::utm30lx270();
+  const ArcTrajectory arc({-1.0, -0.5, 0.3}, 6.0, 5.0);
+  const Pose2 mount{0.25, 0.05, 0.1};
+  const auto simulated = sim::simulateScan(sim::World::demoRoom(), arc, mount, model, kEpoch, 0.0);
+  const auto samples = test::sampleTrajectory(arc, kEpoch, 0.0, 0.03, 0.0005);
+  const CaseResult result = runCase(simulated, arc, mount, samples, withReference(Reference::kStart));
+  EXPECT_EQ(result.scan.points.size(), 1080u);
+  EXPECT_LT(result.corrected.max, 0.1 * kMm);
+  EXPECT_GT(result.raw.max, 20 * kMm);
+}
+
+TEST(Deskew, ZeroTimeIncrementFallsBackToScanTime) {
+  const LidarModel model = LidarModel::ild26tri();
+  const ArcTrajectory arc({-1.0, -0.5, 0.3}, 6.0, 5.0);
+  const Pose2 mount{0.25, 0.05, 0.1};
+  auto simulated = sim::simulateScan(sim::World::demoRoom(), arc, mount, model, kEpoch, 0.0);
+  simulated.scan.time_increment = 0.0f;  // the driver does not say; scan_time = 0.125 s
+  const auto samples = test::sampleTrajectory(arc, kEpoch, 0.0, 0.13, 0.0005);
+  const CaseResult result = runCase(simulated, arc, mount, samples, withReference(Reference::kStart));
+  EXPECT_LT(result.corrected.max, 0.1 * kMm);
+}
+
+TEST(Deskew, StampAtEnd) {
+  const LidarModel model = LidarModel::ild26tri();
+  const ArcTrajectory arc({-1.0, -0.5, 0.3}, 6.0, 5.0);
+  const Pose2 mount{0.25, 0.05, 0.1};
+  auto simulated = sim::simulateScan(sim::World::demoRoom(), arc, mount, model, kEpoch, 0.0);
+  simulated.scan.stamp += core::secondsToNs(359 * static_cast<double>(simulated.scan.time_increment));
+  const auto samples = test::sampleTrajectory(arc, kEpoch, 0.0, 0.13, 0.0005);
+  core::TimingConfig timing;
+  timing.stamp_at = core::StampAt::kEnd;
+  const CaseResult result = runCase(simulated, arc, mount, samples, withReference(Reference::kStart), timing);
+  EXPECT_LT(result.corrected.max, 0.1 * kMm);
+  // Read as stamped at the start, the same scan is wrong by the whole sweep.
+  const auto shifted = test::sampleTrajectory(arc, kEpoch, 0.0, 0.26, 0.0005);
+  const CaseResult misread = runCase(simulated, arc, mount, shifted, withReference(Reference::kStart));
+  EXPECT_GT(misread.corrected.max, 100 * kMm);
+}
+
+// Reference start and end re-express the same beams at different times: placed in the world with the
+// laser's true pose at each reference time, both give the same (true) world points.
+TEST(Deskew, ReferenceStartAndEndGiveTheSameWorldPoints) {
+  const LidarModel model = LidarModel::ild26tri();
+  const ArcTrajectory arc({-1.0, -0.5, 0.3}, 6.0, 5.0);
+  const Pose2 mount{0.25, 0.05, 0.1};
+  const auto simulated = sim::simulateScan(sim::World::demoRoom(), arc, mount, model, kEpoch, 0.0);
+  const auto samples = test::sampleTrajectory(arc, kEpoch, 0.0, 0.13, 0.0005);
+  const CaseResult start = runCase(simulated, arc, mount, samples, withReference(Reference::kStart));
+  const CaseResult end = runCase(simulated, arc, mount, samples, withReference(Reference::kEnd));
+  ASSERT_EQ(start.scan.points.size(), end.scan.points.size());
+  const Pose2 laser_start = arc.pose(core::nsToSeconds(start.scan.reference_time - kEpoch)).compose(mount);
+  const Pose2 laser_end = arc.pose(core::nsToSeconds(end.scan.reference_time - kEpoch)).compose(mount);
+  double largest_in_frame_difference = 0.0;
+  for (std::size_t j = 0; j < start.scan.points.size(); ++j) {
+    const Eigen::Vector2d world_start = laser_start.apply(start.scan.points[j].position.head<2>());
+    const Eigen::Vector2d world_end = laser_end.apply(end.scan.points[j].position.head<2>());
+    EXPECT_LT((world_start - world_end).norm(), 0.1 * kMm);
+    EXPECT_LT((world_start - simulated.world_hits[start.scan.points[j].beam_index]).norm(), 0.1 * kMm);
+    largest_in_frame_difference = std::max(
+        largest_in_frame_difference, (start.scan.points[j].position - end.scan.points[j].position).norm());
+    // time offsets: to the start reference >= 0, to the end reference <= 0, 0.125 s apart at most
+    EXPECT_GE(start.scan.points[j].time_offset, 0.0);
+    EXPECT_LE(end.scan.points[j].time_offset, 1e-12);
+  }
+  EXPECT_GT(largest_in_frame_difference, 0.5);  // the two frames really differ
+}
+
+TEST(Deskew, MotionNotCoveringTheSweepThrowsAndLeavesNoPoints) {
+  const LidarModel model = LidarModel::ild26tri();
+  const ArcTrajectory arc({-1.0, -0.5, 0.3}, 1.5, 2.0);
+  const Pose2 mount{0.0, 0.0, 0.0};
+  const auto simulated = sim::simulateScan(sim::World::demoRoom(), arc, mount, model, kEpoch, 0.0);
+  const auto short_samples = test::sampleTrajectory(arc, kEpoch, 0.0, 0.1, 0.01);  // sweep lasts 0.1247 s
+  for (const double knot_interval : {0.005, 0.0}) {
+    ScanDeskewer deskewer(withReference(Reference::kStart, knot_interval));
+    DeskewedScan out;
+    EXPECT_THROW(deskewer.deskew(simulated.scan, core::resolveTiming(simulated.scan, {}), test::toMrpt(mount),
+                                 short_samples, out),
+                 core::MotionUnavailable);
+    EXPECT_TRUE(out.points.empty());
+  }
+}
+
+// Points with their own times (3D clouds): a 3D mount and motion with roll and pitch.
+TEST(Deskew, PointsWithPerPointTimesMatchTheExactChain) {
+  core::PoseSamples samples;
+  for (int k = 0; k <= 20; ++k) {
+    const double t = 0.01 * k;
+    samples.add(
+        kEpoch + core::secondsToNs(t),
+        mrpt::poses::CPose3D::FromXYZYawPitchRoll(3.0 * t, 0.5 * t * t, 0.2 * t, 2.0 * t, 0.3 * t, -0.4 * t));
+  }
+  const auto mount = mrpt::poses::CPose3D::FromXYZYawPitchRoll(0.1, -0.2, 0.5, 0.3, 0.05, -0.1);
+  std::vector<Eigen::Vector3d> points;
+  std::vector<double> offsets;
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> coordinate(-10.0, 10.0), when(0.0, 0.2);
+  for (int i = 0; i < 2000; ++i) {
+    points.emplace_back(coordinate(rng), coordinate(rng), coordinate(rng));
+    offsets.push_back(when(rng));
+  }
+  points[5].x() = NAN;  // skipped
+  ScanDeskewer deskewer(withReference(Reference::kMiddle));
+  std::vector<Eigen::Vector3d> corrected;
+  std::vector<double> corrected_offsets;
+  std::vector<std::uint32_t> kept;
+  const TimeNs reference =
+      deskewer.deskewPoints(points, offsets, kEpoch, mount, samples, corrected, corrected_offsets, kept);
+  ASSERT_EQ(kept.size(), 1999u);
+  for (std::size_t j = 0; j < kept.size(); ++j) {
+    const std::uint32_t i = kept[j];
+    const Eigen::Vector3d exact =
+        core::deskewPointExact(points[i], kEpoch + core::secondsToNs(offsets[i]), reference, mount, samples);
+    EXPECT_LT((corrected[j] - exact).norm(), 1e-6);  // 1 um: knots include every sample time
+    EXPECT_NEAR(corrected_offsets[j], offsets[i] - core::nsToSeconds(reference - kEpoch), 1e-12);
+  }
+}
+
+}  // namespace
+}  // namespace lidar_deskew

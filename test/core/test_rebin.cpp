@@ -1,0 +1,244 @@
+// Re-binning onto the input grid as rays (DESIGN §4), against closed-form geometry. Tolerances in mm.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+
+#include "lidar_deskew/core/rebin.h"
+#include "support/truth.h"
+
+namespace lidar_deskew {
+namespace {
+
+using core::DeskewedScan;
+using core::RebinnedScan;
+using core::ScanRebinner;
+using core::TimeNs;
+using sim::ArcTrajectory;
+using sim::LidarModel;
+using sim::Pose2;
+
+constexpr TimeNs kEpoch = 1'700'000'000'000'000'000;
+constexpr double kMm = 1e-3;
+constexpr float kInf = std::numeric_limits<float>::infinity();
+
+core::AngleGrid gridOf(const core::PlanarScan& scan) {
+  return {scan.angle_min, scan.angle_increment, scan.ranges.size()};
+}
+
+DeskewedScan deskew(const sim::SimulatedScan& simulated, const sim::Trajectory& trajectory,
+                    const Pose2& mount) {
+  const auto samples =
+      test::sampleTrajectory(trajectory, kEpoch, 0.0, simulated.beam_times.back() + 0.01, 0.0005);
+  core::ScanDeskewer deskewer;
+  DeskewedScan out;
+  deskewer.deskew(simulated.scan, core::resolveTiming(simulated.scan, {}), test::toMrpt(mount), samples, out);
+  return out;
+}
+
+TEST(Rebin, StaticRobotReproducesTheInputScan) {
+  const ArcTrajectory still({1.0, -0.5, 0.7}, 0.0, 0.0);
+  const Pose2 mount{0.25, 0.05, 0.1};
+  auto simulated =
+      sim::simulateScan(sim::World::demoRoom(), still, mount, LidarModel::ild26tri(), kEpoch, 0.0);
+  simulated.scan.intensities.resize(simulated.scan.ranges.size());
+  for (std::size_t i = 0; i < simulated.scan.ranges.size(); ++i)
+    simulated.scan.intensities[i] = 100.0f + i;
+  for (std::size_t i = 40; i < 60; i += 3)
+    simulated.scan.ranges[i] = 0.0f;  // dropouts -> lone returns
+  const DeskewedScan corrected = deskew(simulated, still, mount);
+  ScanRebinner rebinner;
+  RebinnedScan out;
+  rebinner.rebin(corrected, gridOf(simulated.scan), core::noReturnValue(simulated.scan), out);
+  ASSERT_EQ(out.ranges.size(), simulated.scan.ranges.size());
+  ASSERT_EQ(out.intensities.size(), simulated.scan.ranges.size());
+  for (std::size_t i = 0; i < out.ranges.size(); ++i) {
+    EXPECT_NEAR(out.ranges[i], simulated.scan.ranges[i], 1e-5) << "bin " << i;
+    if (simulated.scan.ranges[i] > 0.0f) {
+      EXPECT_NEAR(out.intensities[i], simulated.scan.intensities[i], 1e-3);
+    }
+  }
+}
+
+// A straight wall seen while spinning and driving: every re-binned beam's endpoint (ray at the bin's
+// angle, at its range, from the laser's true pose at t_ref) lies on the true wall.
+TEST(Rebin, EndpointsOfEveryBinLieOnTheTrueWall) {
+  sim::World world;
+  world.add({-200.0, 2.0}, {200.0, 2.0});  // the line y = 2
+  for (const LidarModel& base_model : {LidarModel::ild26tri(), LidarModel::utm30lx360()}) {
+    LidarModel model = base_model;
+    model.range_max = 8.0f;  // walls beyond are out of range; incidence stays below 76 deg
+    const ArcTrajectory spin({0.0, 0.0, 0.4}, 1.5, 5.0);
+    const Pose2 mount{0.25, 0.05, 0.1};
+    const auto simulated = sim::simulateScan(world, spin, mount, model, kEpoch, 0.0);
+    const DeskewedScan corrected = deskew(simulated, spin, mount);
+    ScanRebinner rebinner;
+    RebinnedScan out;
+    rebinner.rebin(corrected, gridOf(simulated.scan), core::noReturnValue(simulated.scan), out);
+    ASSERT_EQ(out.ranges.size(), static_cast<std::size_t>(model.beams));
+
+    const Pose2 laser = spin.pose(core::nsToSeconds(corrected.reference_time - kEpoch)).compose(mount);
+    std::size_t finite_bins = 0;
+    double worst = 0.0, worst_snapped = 0.0;
+    for (std::size_t b = 0; b < out.ranges.size(); ++b) {
+      if (!std::isfinite(out.ranges[b]))
+        continue;
+      ++finite_bins;
+      const double angle = simulated.scan.angle_min + b * static_cast<double>(simulated.scan.angle_increment);
+      const Eigen::Vector2d endpoint =
+          laser.apply(out.ranges[b] * Eigen::Vector2d(std::cos(angle), std::sin(angle)));
+      worst = std::max(worst, std::abs(endpoint.y() - 2.0));
+    }
+    // For comparison: snapping each corrected point to its nearest bin at its own range.
+    for (const auto& point : corrected.points) {
+      const core::PolarPoint polar = core::toPolar(point.position);
+      const double bin =
+          std::round((polar.bearing - simulated.scan.angle_min) / simulated.scan.angle_increment);
+      const double angle = simulated.scan.angle_min + bin * simulated.scan.angle_increment;
+      const Eigen::Vector2d endpoint =
+          laser.apply(polar.range * Eigen::Vector2d(std::cos(angle), std::sin(angle)));
+      worst_snapped = std::max(worst_snapped, std::abs(endpoint.y() - 2.0));
+    }
+    EXPECT_LT(worst, 0.5 * kMm) << model.name;
+    EXPECT_GT(worst_snapped, 5 * kMm) << model.name;  // what snapping would have cost
+
+    // Coverage: every bin whose ray (from the laser at t_ref) meets the part of the wall the scan saw
+    // has a range; at most one bin at each end of that part may be missed.
+    double seen_min_x = INFINITY, seen_max_x = -INFINITY;
+    for (const auto& point : corrected.points) {
+      seen_min_x = std::min(seen_min_x, simulated.world_hits[point.beam_index].x());
+      seen_max_x = std::max(seen_max_x, simulated.world_hits[point.beam_index].x());
+    }
+    std::size_t expected_bins = 0, missed_bins = 0;
+    for (std::size_t b = 0; b < out.ranges.size(); ++b) {
+      const double angle =
+          laser.yaw + simulated.scan.angle_min + b * static_cast<double>(simulated.scan.angle_increment);
+      const auto hit = world.castRay({laser.x, laser.y}, {std::cos(angle), std::sin(angle)});
+      if (!hit)
+        continue;
+      const double x = laser.x + *hit * std::cos(angle);
+      if (x < seen_min_x || x > seen_max_x)
+        continue;
+      ++expected_bins;
+      if (!std::isfinite(out.ranges[b]))
+        ++missed_bins;
+    }
+    EXPECT_GT(expected_bins, static_cast<std::size_t>(model.beams) / 4) << model.name;
+    EXPECT_LE(missed_bins, 2u) << model.name;
+    EXPECT_LE(finite_bins, expected_bins + 2) << model.name;
+  }
+}
+
+// Synthetic corrected scans on a 1 deg grid: positions given in closed form.
+struct SyntheticScan {
+  DeskewedScan scan;
+  core::AngleGrid grid{static_cast<float>(-M_PI), static_cast<float>(M_PI / 180.0), 360};
+
+  /// Points on the line x = distance at bearings first_deg .. last_deg (1 deg apart), beam indices from
+  /// first_index, with `intensity`.
+  void addLine(double distance, int first_deg, int last_deg, std::uint32_t first_index, float intensity) {
+    scan.has_intensities = true;
+    for (int degrees = first_deg; degrees <= last_deg; ++degrees) {
+      const double bearing = degrees * M_PI / 180.0;
+      scan.points.push_back({Eigen::Vector3d(distance, distance * std::tan(bearing), 0.0), 0.0, intensity,
+                             first_index + static_cast<std::uint32_t>(degrees - first_deg)});
+    }
+  }
+  static int binOf(int degrees) { return degrees + 180; }
+};
+
+TEST(Rebin, FoldOverTakesTheNearestCrossingAndEmptyBinsStayInfinite) {
+  SyntheticScan synthetic;
+  synthetic.addLine(5.0, -20, 20, 10, 1.0f);  // early beams: a wall 5 m ahead
+  synthetic.addLine(3.0, 0, 15, 200, 2.0f);   // late beams, folded over: a wall 3 m ahead
+  ScanRebinner rebinner;
+  RebinnedScan out;
+  rebinner.rebin(synthetic.scan, synthetic.grid, kInf, out);
+  ASSERT_EQ(out.ranges.size(), 360u);
+  for (int degrees = -180; degrees < 180; ++degrees) {
+    const int bin = SyntheticScan::binOf(degrees);
+    const double cosine = std::cos(degrees * M_PI / 180.0);
+    if (degrees >= 0 && degrees <= 15) {
+      EXPECT_NEAR(out.ranges[bin], 3.0 / cosine, 1e-5) << degrees;
+      EXPECT_EQ(out.intensities[bin], 2.0f);
+    } else if (degrees >= -20 && degrees <= 20) {
+      EXPECT_NEAR(out.ranges[bin], 5.0 / cosine, 1e-5) << degrees;
+      EXPECT_EQ(out.intensities[bin], 1.0f);
+    } else {
+      EXPECT_EQ(out.ranges[bin], kInf) << degrees;
+    }
+  }
+}
+
+TEST(Rebin, InterpolatesBetweenPointsOffTheGrid) {
+  // Ten points at bearings 0.4, 1.4, ..., 9.4 deg on the line x = 4: bins 1..9 lie between points and
+  // are interpolated on the line; bin 0 lies 0.4 deg (< half a bin) before the first point and is
+  // reached along the contour's line; bin 10 lies 0.6 deg past the last point and is not.
+  SyntheticScan synthetic;
+  for (int k = 0; k < 10; ++k) {
+    const double bearing = (k + 0.4) * M_PI / 180.0;
+    synthetic.scan.points.push_back(
+        {Eigen::Vector3d(4.0, 4.0 * std::tan(bearing), 0.0), 0.0, 0.0f, static_cast<std::uint32_t>(k)});
+  }
+  ScanRebinner rebinner;
+  RebinnedScan out;
+  rebinner.rebin(synthetic.scan, synthetic.grid, 0.0f, out);
+  EXPECT_TRUE(out.intensities.empty());
+  for (int degrees = 0; degrees <= 9; ++degrees) {
+    EXPECT_NEAR(out.ranges[SyntheticScan::binOf(degrees)], 4.0 / std::cos(degrees * M_PI / 180.0), 1e-5)
+        << degrees;
+  }
+  EXPECT_EQ(out.ranges[SyntheticScan::binOf(-1)], 0.0f);  // the input's own "no return"
+  EXPECT_EQ(out.ranges[SyntheticScan::binOf(10)], 0.0f);
+}
+
+TEST(Rebin, DepthJumpsAreNotBridged) {
+  SyntheticScan synthetic;
+  synthetic.addLine(2.0, -10, -1, 0, 0.0f);
+  synthetic.addLine(6.0, 0, 10, 10, 0.0f);  // beam 9 -> 10 jumps 4 m: two contours
+  ScanRebinner rebinner;
+  RebinnedScan out;
+  rebinner.rebin(synthetic.scan, synthetic.grid, kInf, out);
+  EXPECT_NEAR(out.ranges[SyntheticScan::binOf(-1)], 2.0 / std::cos(M_PI / 180.0), 1e-5);
+  EXPECT_NEAR(out.ranges[SyntheticScan::binOf(0)], 6.0, 1e-5);
+}
+
+TEST(Rebin, ClockwiseGridAndNoReturnValue) {
+  core::PlanarScan scan;
+  scan.range_min = 0.1f;
+  scan.range_max = 10.0f;
+  scan.ranges = {1.0f, 0.0f, 2.0f};
+  EXPECT_EQ(core::noReturnValue(scan), 0.0f);
+  scan.ranges = {1.0f, 2.0f};
+  EXPECT_EQ(core::noReturnValue(scan), kInf);
+  scan.ranges = {1.0f, 11.0f};
+  EXPECT_EQ(core::noReturnValue(scan), 11.0f);
+
+  // Clockwise grid from +10 deg down to -10 deg: the x = 3 line, bins in reverse order.
+  SyntheticScan synthetic;
+  synthetic.grid = {static_cast<float>(10 * M_PI / 180), static_cast<float>(-M_PI / 180), 21};
+  for (int k = 0; k <= 20; ++k) {
+    const double bearing = (10 - k) * M_PI / 180;
+    synthetic.scan.points.push_back(
+        {Eigen::Vector3d(3.0, 3.0 * std::tan(bearing), 0.0), 0.0, 0.0f, static_cast<std::uint32_t>(k)});
+  }
+  ScanRebinner rebinner;
+  RebinnedScan out;
+  rebinner.rebin(synthetic.scan, synthetic.grid, kInf, out);
+  for (int k = 0; k <= 20; ++k)
+    EXPECT_NEAR(out.ranges[k], 3.0 / std::cos((10 - k) * M_PI / 180), 1e-5);
+}
+
+TEST(Rebin, ConfigValidationNamesTheParameter) {
+  core::RebinConfig config;
+  config.min_gap = -1.0;
+  try {
+    ScanRebinner rebinner(config);
+    FAIL();
+  } catch (const core::InvalidInput& error) {
+    EXPECT_EQ(error.field(), "rebin_min_gap");
+  }
+}
+
+}  // namespace
+}  // namespace lidar_deskew
