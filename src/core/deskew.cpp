@@ -1,6 +1,6 @@
 #include "lidar_deskew/core/deskew.h"
 
-#include <mrpt/poses/Lie/SO.h>
+#include <Eigen/Geometry>
 
 #include <algorithm>
 #include <cmath>
@@ -116,13 +116,11 @@ void KnotTrajectory::build(TimeNs origin, double span_begin, double span_end, Ti
     segment.left_translation = detail::translationOf(left);
     segment.translation_step = detail::translationOf(next) - segment.left_translation;
     // R_k^T R_k+1 = left_k^T left_k+1: the left factor R_M^T cancels.
-    const mrpt::math::CMatrixDouble33 step_rotation(segment.left_rotation.transpose() *
-                                                    detail::rotationOf(next));
-    const auto log = mrpt::poses::Lie::SO<3>::log(step_rotation);
-    const Eigen::Vector3d rotation_vector(log[0], log[1], log[2]);
-    segment.angle = rotation_vector.norm();
-    segment.axis =
-        segment.angle > 0.0 ? Eigen::Vector3d(rotation_vector / segment.angle) : Eigen::Vector3d::UnitZ();
+    const Eigen::AngleAxisd step_rotation(
+        Eigen::Matrix3d(segment.left_rotation.transpose() * detail::rotationOf(next)));
+    segment.angle = step_rotation.angle();  // in [0, pi]
+    segment.axis = segment.angle > 0.0 ? step_rotation.axis() : Eigen::Vector3d::UnitZ();
+    const Eigen::Vector3d rotation_vector = segment.angle * segment.axis;
     segment.left_yaw_cos = segment.left_rotation(0, 0);
     segment.left_yaw_sin = segment.left_rotation(1, 0);
     segment.yaw_step = rotation_vector.z();

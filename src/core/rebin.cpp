@@ -15,6 +15,15 @@ inline double cross(double ax, double ay, double bx, double by) {
   return ax * by - ay * bx;
 }
 
+/// `angle` [rad] (finite, within a few turns) moved into [0, 2pi) without a library call.
+inline double wrapToTurn(double angle) {
+  while (angle < 0.0)
+    angle += kTwoPi;
+  while (angle >= kTwoPi)
+    angle -= kTwoPi;
+  return angle;
+}
+
 }  // namespace
 
 void RebinConfig::validate() const {
@@ -75,33 +84,39 @@ void ScanRebinner::rebin(const DeskewedScan& corrected, const AngleGrid& grid, f
   point_bearing_.resize(point_count);
   for (std::size_t j = 0; j < point_count; ++j) {
     const Eigen::Vector3d& p = points[j].position;
+    if (!std::isfinite(p.x()) || !std::isfinite(p.y())) {
+      throw InvalidInput("points", "corrected point " + std::to_string(j) + " is not finite");
+    }
     point_range_[j] = std::sqrt(p.x() * p.x() + p.y() * p.y());
     point_bearing_[j] = std::atan2(p.y(), p.x());
   }
 
   // Bins whose ray angle lies in [low, low + width] (mod 2pi), width <= pi: visit(bin).
+  const double inverse_increment = abs_increment > 0.0 ? 1.0 / abs_increment : 0.0;
+  const bool wider_than_a_turn = abs_increment * static_cast<double>(bin_count - 1) >= kTwoPi - 1e-9;
+  const auto visitBinsFrom = [&](double start, double width, auto&& visit) {
+    // start, start + width: angles [rad] from angle_min along the grid's direction
+    const double first = std::max(std::ceil(start * inverse_increment - 1e-6), 0.0);
+    const double last =
+        std::min(std::floor((start + width) * inverse_increment + 1e-6), static_cast<double>(bin_count - 1));
+    for (double b = first; b <= last; b += 1.0)
+      visit(static_cast<std::size_t>(b));
+  };
   const auto forEachBinIn = [&](double low, double width, auto&& visit) {
     if (bin_count == 0)
       return;
-    if (bin_count == 1 || abs_increment == 0.0) {
-      const double offset = std::remainder(static_cast<double>(grid.angle_min) - low, kTwoPi);
-      if (offset >= -1e-12 && offset <= width + 1e-12)
+    if (bin_count == 1) {
+      const double offset = wrapToTurn(static_cast<double>(grid.angle_min) - low);
+      if (offset <= width + 1e-12 || offset >= kTwoPi - 1e-12)
         visit(std::size_t{0});
       return;
     }
-    // Distance from angle_min along the grid's direction to the interval's first angle, in [0, 2pi).
-    const double along = increment > 0.0 ? low - grid.angle_min : grid.angle_min - (low + width);
-    double start = std::fmod(along, kTwoPi);
-    if (start < 0.0)
-      start += kTwoPi;
-    for (const double shift : {0.0, -kTwoPi, kTwoPi}) {
-      const double first = std::ceil((start + shift) / abs_increment - 1e-6);
-      const double last = std::floor((start + shift + width) / abs_increment + 1e-6);
-      const double lo = std::max(first, 0.0);
-      const double hi = std::min(last, static_cast<double>(bin_count - 1));
-      for (double b = lo; b <= hi; b += 1.0)
-        visit(static_cast<std::size_t>(b));
-    }
+    const double start = wrapToTurn(increment > 0.0 ? low - grid.angle_min : grid.angle_min - (low + width));
+    visitBinsFrom(start, width, visit);
+    if (start + width >= kTwoPi - 1e-9)
+      visitBinsFrom(start - kTwoPi, width, visit);  // past the grid's wrap
+    if (wider_than_a_turn)
+      visitBinsFrom(start + kTwoPi, width, visit);  // e.g. 361 x 1 deg
   };
 
   const auto offer = [&](std::size_t bin, double range, float intensity) {
@@ -117,12 +132,17 @@ void ScanRebinner::rebin(const DeskewedScan& corrected, const AngleGrid& grid, f
   const auto joined = [&](std::size_t a, std::size_t b) {
     const double dx = points[b].position.x() - points[a].position.x();
     const double dy = points[b].position.y() - points[a].position.y();
-    return std::sqrt(dx * dx + dy * dy) <= gapLimit(a, b);
+    const double limit = gapLimit(a, b);
+    return dx * dx + dy * dy <= limit * limit;
   };
 
   // Contour segment a -> b: every bin whose ray crosses it.
   const auto crossSegment = [&](std::size_t a, std::size_t b) {
-    const double delta = std::remainder(point_bearing_[b] - point_bearing_[a], kTwoPi);
+    double delta = point_bearing_[b] - point_bearing_[a];  // bearings in [-pi, pi]: wrap once
+    if (delta > M_PI)
+      delta -= kTwoPi;
+    if (delta < -M_PI)
+      delta += kTwoPi;
     if (std::abs(delta) >= M_PI - 1e-9)
       return;  // passes through the sensor: not a visible surface
     const double ax = points[a].position.x(), ay = points[a].position.y();
@@ -163,7 +183,8 @@ void ScanRebinner::rebin(const DeskewedScan& corrected, const AngleGrid& grid, f
   };
 
   // Links between consecutive points; for a full-circle grid the last beam also neighbours the first.
-  std::vector<char> linked_to_next(point_count, 0);
+  std::vector<char>& linked_to_next = linked_to_next_;
+  linked_to_next.assign(point_count, 0);
   for (std::size_t j = 0; j + 1 < point_count; ++j) {
     linked_to_next[j] = points[j + 1].beam_index == points[j].beam_index + 1 && joined(j, j + 1);
   }

@@ -323,3 +323,75 @@ TEST(Deskew, PointsWithPerPointTimesMatchTheExactChain) {
 
 }  // namespace
 }  // namespace lidar_deskew
+
+namespace lidar_deskew {
+namespace {
+
+// The planar fast path (a rotation step per beam) and the general knot map give the same points, for
+// forward and backward beam timing.
+TEST(Deskew, PlanarFastPathMatchesTheGeneralKnotMap) {
+  const sim::World world = sim::World::demoRoom();
+  const ArcTrajectory arc({-1.0, -0.5, 0.3}, 6.0, 5.0);
+  const Pose2 mount{0.25, 0.05, 0.1};
+  const LidarModel model = LidarModel::ild26tri();
+  for (const bool backwards : {false, true}) {
+    auto simulated = sim::simulateScan(world, arc, mount, model, kEpoch, 0.0);
+    if (backwards) {  // same ranges, but the driver says beam 0 came last
+      simulated.scan.time_increment = -simulated.scan.time_increment;
+    }
+    const test::ClosedFormMotion motion(arc, kEpoch, -0.2, 0.2);
+    const core::BeamTiming timing = core::resolveTiming(simulated.scan, {});
+    ScanDeskewer deskewer(withReference(Reference::kMiddle));
+    DeskewedScan fast;
+    deskewer.deskew(simulated.scan, timing, test::toMrpt(mount), motion, fast);
+    ASSERT_EQ(fast.points.size(), 360u);
+
+    core::KnotTrajectory general;
+    const double last = timing.beamOffset(359);
+    general.build(timing.first_beam_time, std::min(0.0, last), std::max(0.0, last), fast.reference_time,
+                  0.005, test::toMrpt(mount), motion);
+    ASSERT_TRUE(general.planar());
+    EXPECT_GE(general.knotCount(), 26u);  // 0.125 s sweep, 5 ms knots
+    double largest = 0.0;
+    for (const auto& point : fast.points) {
+      const double angle =
+          simulated.scan.angle_min + point.beam_index * static_cast<double>(simulated.scan.angle_increment);
+      const double range = simulated.scan.ranges[point.beam_index];
+      const Eigen::Vector3d expected = general.apply(timing.beamOffset(point.beam_index),
+                                                     {range * std::cos(angle), range * std::sin(angle), 0.0});
+      largest = std::max(largest, (point.position - expected).norm());
+      EXPECT_NEAR(point.time_offset,
+                  timing.beamOffset(point.beam_index) -
+                      core::nsToSeconds(fast.reference_time - timing.first_beam_time),
+                  1e-12);
+    }
+    EXPECT_LT(largest, 1e-9) << (backwards ? "backwards" : "forwards");
+  }
+}
+
+// A laser tilted on its mount (roll, pitch) leaves the planar path: points leave the plane z = 0 of the
+// base, and the general knot map still matches the exact per-beam chain.
+TEST(Deskew, TiltedMountMatchesTheExactChain) {
+  const sim::World world = sim::World::demoRoom();
+  const ArcTrajectory arc({-1.0, -0.5, 0.3}, 6.0, 5.0);
+  const Pose2 planar_mount{0.25, 0.05, 0.1};
+  const LidarModel model = LidarModel::utm30lx360();
+  const auto simulated = sim::simulateScan(world, arc, planar_mount, model, kEpoch, 0.0);
+  const auto tilted = mrpt::poses::CPose3D::FromXYZYawPitchRoll(0.25, 0.05, 0.3, 0.1, 0.05, 0.08);
+  const auto samples = test::sampleTrajectory(arc, kEpoch, 0.0, 0.03, 0.02);
+  const core::BeamTiming timing = core::resolveTiming(simulated.scan, {});
+  DeskewedScan knots, exact;
+  ScanDeskewer(withReference(Reference::kStart)).deskew(simulated.scan, timing, tilted, samples, knots);
+  ScanDeskewer(withReference(Reference::kStart, 0.0)).deskew(simulated.scan, timing, tilted, samples, exact);
+  ASSERT_EQ(knots.points.size(), exact.points.size());
+  double largest = 0.0, largest_z = 0.0;
+  for (std::size_t j = 0; j < knots.points.size(); ++j) {
+    largest = std::max(largest, (knots.points[j].position - exact.points[j].position).norm());
+    largest_z = std::max(largest_z, std::abs(exact.points[j].position.z()));
+  }
+  EXPECT_LT(largest, 1e-6);    // 1 um: the knots include every pose sample, so both follow tf's lerp
+  EXPECT_GT(largest_z, 1e-3);  // the tilt really moves points out of the scan plane
+}
+
+}  // namespace
+}  // namespace lidar_deskew

@@ -60,6 +60,25 @@ TEST(Rebin, StaticRobotReproducesTheInputScan) {
   }
 }
 
+// A grid of 361 beams of 1 deg (like the Neato XV-11's) has its first and last beam on the same ray.
+TEST(Rebin, GridWiderThanATurnFillsBothEnds) {
+  LidarModel model = LidarModel::ild26tri();
+  model.beams = 361;
+  model.field_of_view = 361.0 * M_PI / 180.0;
+  const ArcTrajectory still({1.0, -0.5, 0.7}, 0.0, 0.0);
+  const Pose2 mount{0.0, 0.0, 0.0};
+  const auto simulated = sim::simulateScan(sim::World::demoRoom(), still, mount, model, kEpoch, 0.0);
+  const DeskewedScan corrected = deskew(simulated, still, mount);
+  ScanRebinner rebinner;
+  RebinnedScan out;
+  rebinner.rebin(corrected, gridOf(simulated.scan), core::noReturnValue(simulated.scan), out);
+  ASSERT_EQ(out.ranges.size(), 361u);
+  for (std::size_t i = 0; i < out.ranges.size(); ++i) {
+    EXPECT_NEAR(out.ranges[i], simulated.scan.ranges[i], 1e-5) << "bin " << i;
+  }
+  EXPECT_NEAR(out.ranges[0], out.ranges[360], 1e-5);
+}
+
 // A straight wall seen while spinning and driving: every re-binned beam's endpoint (ray at the bin's
 // angle, at its range, from the laser's true pose at t_ref) lies on the true wall.
 TEST(Rebin, EndpointsOfEveryBinLieOnTheTrueWall) {
@@ -227,6 +246,20 @@ TEST(Rebin, ClockwiseGridAndNoReturnValue) {
   rebinner.rebin(synthetic.scan, synthetic.grid, kInf, out);
   for (int k = 0; k <= 20; ++k)
     EXPECT_NEAR(out.ranges[k], 3.0 / std::cos((10 - k) * M_PI / 180), 1e-5);
+}
+
+TEST(Rebin, NonFinitePointIsRejected) {
+  SyntheticScan synthetic;
+  synthetic.addLine(5.0, -2, 2, 0, 1.0f);
+  synthetic.scan.points[2].position.y() = NAN;
+  ScanRebinner rebinner;
+  RebinnedScan out;
+  try {
+    rebinner.rebin(synthetic.scan, synthetic.grid, kInf, out);
+    FAIL() << "expected InvalidInput";
+  } catch (const core::InvalidInput& error) {
+    EXPECT_EQ(error.field(), "points");
+  }
 }
 
 TEST(Rebin, ConfigValidationNamesTheParameter) {

@@ -55,7 +55,8 @@ class ScanRebinner {
   /// - where several contours cross a ray (a fast spin folds the scan over itself), the nearest wins;
   /// - a bin no contour crosses gets `no_return`.
   /// Writes `grid.count` ranges (and intensities when corrected.has_intensities, else none).
-  /// Throws InvalidInput("angle_increment") for a zero or non-finite increment with more than one bin.
+  /// Throws InvalidInput("angle_increment") for a zero or non-finite increment with more than one bin,
+  /// InvalidInput("points") for a non-finite point (ScanDeskewer never makes one).
   void rebin(const DeskewedScan& corrected, const AngleGrid& grid, float no_return, RebinnedScan& out);
 
  private:
@@ -67,6 +68,7 @@ class ScanRebinner {
   std::vector<double> best_range_;         // [m] nearest crossing per bin so far
   std::vector<float> best_intensity_;
   std::vector<double> point_range_, point_bearing_;  // polar form of the corrected points
+  std::vector<char> linked_to_next_;                 // point j and the next one form a contour segment
 };
 
 }  // namespace lidar_deskew::core
