@@ -132,12 +132,15 @@ class SummaryReporter : public benchmark::ConsoleReporter {
   void ReportRuns(const std::vector<Run>& runs) override {
     ConsoleReporter::ReportRuns(runs);
     for (const Run& run : runs) {
-      if (run.run_type != Run::RT_Iteration || run.error_occurred)
+      // one line per benchmark: the run itself, or the median of its repetitions
+      const bool median = run.run_type == Run::RT_Aggregate && run.aggregate_name == "median";
+      const bool single = run.run_type == Run::RT_Iteration && run.repetitions <= 1;
+      if (run.error_occurred || !(median || single))
         continue;
       const double points = run.counters.at("points").value;
       const double ns_per_call =
           run.GetAdjustedRealTime() * (run.time_unit == benchmark::kMicrosecond ? 1e3 : 1.0);
-      summary_.emplace_back(run.benchmark_name(), ns_per_call, points);
+      summary_.emplace_back(run.run_name.str(), ns_per_call, points);
     }
   }
   void Finalize() override {

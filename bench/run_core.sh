@@ -9,4 +9,4 @@ build="$repo/.build/bench"
 cmake -S "$repo" -B "$build" -DCMAKE_BUILD_TYPE=Release -DCATKIN_ENABLE_TESTING=OFF >/dev/null
 cmake --build "$build" --target bench_core -j"${LIDAR_DESKEW_JOBS:-2}" >/dev/null
 bench=$(find "$build" -type f -name bench_core -perm -u+x | head -n 1)
-taskset -c 0 "$bench" --benchmark_min_time=0.5 "$@"
+taskset -c 0 "$bench" --benchmark_min_time=0.5 --benchmark_repetitions=5 --benchmark_report_aggregates_only=true "$@"
