@@ -312,22 +312,23 @@ void ScanDeskewer::correctScan(const PlanarScan& scan, const BeamTiming& timing,
   updateBeamDirections(scan);
   const double reference_offset = nsToSeconds(out.reference_time - timing.first_beam_time);
 
-  const auto emit = [&](std::size_t i, const Eigen::Vector3d& position) {
-    const double beam_offset = timing.beamOffset(i);
-    out.points.push_back({position, beam_offset - reference_offset,
-                          out.has_intensities ? scan.intensities[i] : 0.0f, static_cast<std::uint32_t>(i)});
-  };
-
-  if (config_.knot_interval == 0.0) {
-    const ExactChain chain(out.reference_time, mount, motion);
+  // Beam by beam, for the exact mode and for non-planar motion: correct(i, raw point) per return.
+  const auto correctEachReturn = [&](auto&& correct) {
     out.points.clear();
     for (std::size_t i = 0; i < count; ++i) {
       const float range = scan.ranges[i];
       if (!is_return(range))
         continue;
       const Eigen::Vector3d raw(range * beam_directions_[i].x(), range * beam_directions_[i].y(), 0.0);
-      emit(i, chain.apply(timing.beamTime(i), raw));
+      out.points.push_back({correct(i, raw), timing.beamOffset(i) - reference_offset,
+                            out.has_intensities ? scan.intensities[i] : 0.0f, static_cast<std::uint32_t>(i)});
     }
+  };
+
+  if (config_.knot_interval == 0.0) {
+    const ExactChain chain(out.reference_time, mount, motion);
+    correctEachReturn(
+        [&](std::size_t i, const Eigen::Vector3d& raw) { return chain.apply(timing.beamTime(i), raw); });
     return;
   }
 
@@ -338,14 +339,9 @@ void ScanDeskewer::correctScan(const PlanarScan& scan, const BeamTiming& timing,
     trajectory_.correctPlanarScan(scan, timing.beam_period, beam_directions_, reference_offset, out);
     return;
   }
-  out.points.clear();
-  for (std::size_t i = 0; i < count; ++i) {
-    const float range = scan.ranges[i];
-    if (!is_return(range))
-      continue;
-    const Eigen::Vector3d raw(range * beam_directions_[i].x(), range * beam_directions_[i].y(), 0.0);
-    emit(i, trajectory_.apply(timing.beamOffset(i), raw));
-  }
+  correctEachReturn([&](std::size_t i, const Eigen::Vector3d& raw) {
+    return trajectory_.apply(timing.beamOffset(i), raw);
+  });
 }
 
 TimeNs ScanDeskewer::deskewPoints(const std::vector<Eigen::Vector3d>& points,

@@ -18,8 +18,8 @@ using sim::ArcTrajectory;
 using sim::LidarModel;
 using sim::Pose2;
 
-constexpr TimeNs kEpoch = 1'700'000'000'000'000'000;
-constexpr double kMm = 1e-3;
+using test::kEpoch;
+using test::kMm;
 
 /// Raw and corrected error [m] of one simulated scan, corrected with `config` from `motion`.
 struct CaseResult {

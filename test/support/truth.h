@@ -11,6 +11,10 @@
 
 namespace lidar_deskew::test {
 
+/// Epoch of simulated time [ns] (an ordinary ROS time), and one millimetre [m].
+constexpr core::TimeNs kEpoch = 1'700'000'000'000'000'000;
+constexpr double kMm = 1e-3;
+
 /// The planar pose as an MRPT pose (z = 0, yaw only).
 mrpt::poses::CPose3D toMrpt(const sim::Pose2& pose);
 
