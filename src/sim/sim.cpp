@@ -33,8 +33,9 @@ void World::addPolygon(const std::vector<Eigen::Vector2d>& corners) {
     add(corners[i], corners[(i + 1) % corners.size()]);
 }
 
-std::optional<double> World::castRay(const Eigen::Vector2d& origin, const Eigen::Vector2d& direction) const {
-  std::optional<double> nearest;
+std::optional<World::Hit> World::castRayHit(const Eigen::Vector2d& origin,
+                                            const Eigen::Vector2d& direction) const {
+  std::optional<Hit> nearest;
   for (const Segment& segment : segments_) {
     // origin + r direction = a + u (b - a)
     const Eigen::Vector2d edge = segment.b - segment.a;
@@ -44,10 +45,16 @@ std::optional<double> World::castRay(const Eigen::Vector2d& origin, const Eigen:
     const Eigen::Vector2d to_a = segment.a - origin;
     const double range = cross(to_a, edge) / denominator;
     const double u = cross(to_a, direction) / denominator;
-    if (range > 0.0 && u >= 0.0 && u <= 1.0 && (!nearest || range < *nearest))
-      nearest = range;
+    if (range > 0.0 && u >= 0.0 && u <= 1.0 && (!nearest || range < nearest->range)) {
+      nearest = Hit{range, Eigen::Vector2d(-edge.y(), edge.x()).normalized()};
+    }
   }
   return nearest;
+}
+
+std::optional<double> World::castRay(const Eigen::Vector2d& origin, const Eigen::Vector2d& direction) const {
+  const std::optional<Hit> hit = castRayHit(origin, direction);
+  return hit ? std::optional<double>(hit->range) : std::nullopt;
 }
 
 double World::distanceTo(const Eigen::Vector2d& point) const {
@@ -60,6 +67,29 @@ double World::distanceTo(const Eigen::Vector2d& point) const {
   return nearest;
 }
 
+World World::hall() {
+  World world;
+  // Outer walls, counter-clockwise from the south-west corner; the corridor leaves the north wall
+  // between x = 4 and 6.4 m and runs 6 m north; the east end is slanted.
+  world.addPolygon({{-20.0, -5.0},
+                    {17.0, -5.0},
+                    {20.0, -2.0},
+                    {20.0, 5.0},
+                    {6.4, 5.0},
+                    {6.4, 11.0},
+                    {4.0, 11.0},
+                    {4.0, 5.0},
+                    {-17.0, 5.0},
+                    {-20.0, 1.5}});
+  // Square pillars along the hall and a wall at 30 deg.
+  for (const double x : {-12.0, -4.0, 8.0}) {
+    world.addPolygon({{x, -2.8}, {x + 0.5, -2.8}, {x + 0.5, -2.3}, {x, -2.3}});
+  }
+  world.addPolygon({{-8.0, 2.5}, {-7.6, 2.5}, {-7.6, 2.9}, {-8.0, 2.9}});
+  world.add({12.0, 1.0}, {12.0 + 3.0 * std::cos(M_PI / 6), 1.0 + 3.0 * std::sin(M_PI / 6)});
+  return world;
+}
+
 World World::demoRoom() {
   World world;
   // Outer walls with one corner cut by a slanted wall.
@@ -70,19 +100,56 @@ World World::demoRoom() {
   return world;
 }
 
-Pose2 ArcTrajectory::pose(double t) const {
-  const double yaw = start_.yaw + yaw_rate_ * t;
+Pose2 integrateUnicycle(const Pose2& start, double speed, double acceleration, double yaw_rate, double t) {
   double forward, left;  // displacement in the start frame
-  if (std::abs(yaw_rate_ * t) < 1e-9) {
-    forward = speed_ * t;
-    left = 0.5 * speed_ * yaw_rate_ * t * t;
+  if (std::abs(yaw_rate) < 1e-9) {
+    forward = speed * t + 0.5 * acceleration * t * t;
+    left = 0.0;
   } else {
-    const double radius = speed_ / yaw_rate_;
-    forward = radius * std::sin(yaw_rate_ * t);
-    left = radius * (1.0 - std::cos(yaw_rate_ * t));
+    // With heading h(s) = w s: d/ds [ v(s) sin h / w + a cos h / w^2 ] = v(s) cos h, and
+    // d/ds [ -v(s) cos h / w + a sin h / w^2 ] = v(s) sin h.
+    const double heading = yaw_rate * t;
+    const double speed_end = speed + acceleration * t;
+    const double w2 = yaw_rate * yaw_rate;
+    forward = (speed_end * std::sin(heading) / yaw_rate + acceleration * std::cos(heading) / w2) -
+              (acceleration / w2);
+    left = (-speed_end * std::cos(heading) / yaw_rate + acceleration * std::sin(heading) / w2) -
+           (-speed / yaw_rate);
   }
-  const Eigen::Vector2d position = start_.apply({forward, left});
-  return {position.x(), position.y(), yaw};
+  const Eigen::Vector2d position = start.apply({forward, left});
+  return {position.x(), position.y(), start.yaw + yaw_rate * t};
+}
+
+PiecewiseTrajectory::PiecewiseTrajectory(const Pose2& start, std::vector<MotionPiece> pieces)
+    : pieces_(std::move(pieces)) {
+  if (pieces_.empty())
+    pieces_.push_back({});
+  starts_.push_back(start);
+  begin_times_.push_back(0.0);
+  for (std::size_t k = 0; k + 1 < pieces_.size(); ++k) {
+    const MotionPiece& piece = pieces_[k];
+    starts_.push_back(
+        integrateUnicycle(starts_[k], piece.speed, piece.acceleration, piece.yaw_rate, piece.duration));
+    begin_times_.push_back(begin_times_[k] + piece.duration);
+  }
+}
+
+std::size_t PiecewiseTrajectory::pieceAt(double t) const {
+  std::size_t k = 0;
+  while (k + 1 < pieces_.size() && t >= begin_times_[k + 1])
+    ++k;
+  return k;
+}
+
+Pose2 PiecewiseTrajectory::pose(double t) const {
+  const std::size_t k = pieceAt(t);
+  const MotionPiece& piece = pieces_[k];
+  return integrateUnicycle(starts_[k], piece.speed, piece.acceleration, piece.yaw_rate, t - begin_times_[k]);
+}
+
+double PiecewiseTrajectory::speed(double t) const {
+  const std::size_t k = pieceAt(t);
+  return pieces_[k].speed + pieces_[k].acceleration * (t - begin_times_[k]);
 }
 
 float LidarModel::angleIncrement() const {

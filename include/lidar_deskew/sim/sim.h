@@ -41,6 +41,12 @@ class World {
   void addPolygon(const std::vector<Eigen::Vector2d>& corners);
   const std::vector<Segment>& segments() const { return segments_; }
 
+  /// Where a ray meets the nearest wall: distance [m] along the unit ray, and the wall's unit normal.
+  struct Hit {
+    double range;
+    Eigen::Vector2d normal;
+  };
+  std::optional<Hit> castRayHit(const Eigen::Vector2d& origin, const Eigen::Vector2d& direction) const;
   /// Distance [m] along the unit ray from `origin` to the nearest wall, if any is hit.
   std::optional<double> castRay(const Eigen::Vector2d& origin, const Eigen::Vector2d& direction) const;
   /// Distance [m] from `point` to the nearest wall (infinity for an empty world).
@@ -48,6 +54,9 @@ class World {
 
   /// A 12 x 8 m room centred on the origin, with a slanted wall across one corner and a 0.4 m pillar.
   static World demoRoom();
+  /// The paper experiments' world: a 40 x 10 m hall (x from -20 to 20 m) with walls at several angles,
+  /// pillars and a 2.4 m wide corridor leaving it, so a robot can drive 8 m at 6 m/s in it.
+  static World hall();
 
  private:
   std::vector<Segment> segments_;
@@ -60,18 +69,51 @@ class Trajectory {
   virtual Pose2 pose(double t) const = 0;
 };
 
+/// A unicycle from `start` after `t` [s] with forward speed `speed + acceleration * t` [m/s] and a
+/// constant yaw rate [rad/s], integrated in closed form (exact: no numerical integration).
+Pose2 integrateUnicycle(const Pose2& start, double speed, double acceleration, double yaw_rate, double t);
+
 /// Constant forward speed v [m/s] and yaw rate w [rad/s] from `start` at t = 0: an arc (a line for
 /// w = 0, a spin in place for v = 0), integrated in closed form.
 class ArcTrajectory final : public Trajectory {
  public:
   ArcTrajectory(const Pose2& start, double speed, double yaw_rate)
       : start_(start), speed_(speed), yaw_rate_(yaw_rate) {}
-  Pose2 pose(double t) const override;
+  Pose2 pose(double t) const override { return integrateUnicycle(start_, speed_, 0.0, yaw_rate_, t); }
 
  private:
   Pose2 start_;
   double speed_;
   double yaw_rate_;
+};
+
+/// One piece of a piecewise motion: for `duration` [s], forward speed starting at `speed` [m/s] and
+/// changing by `acceleration` [m/s^2], at a constant `yaw_rate` [rad/s].
+struct MotionPiece {
+  double duration = 0.0;
+  double speed = 0.0;
+  double acceleration = 0.0;
+  double yaw_rate = 0.0;
+};
+
+/// Pieces of unicycle motion one after the other from `start` at t = 0, each integrated exactly; the
+/// last piece goes on past its duration. Before t = 0 the first piece runs backwards in time.
+class PiecewiseTrajectory final : public Trajectory {
+ public:
+  PiecewiseTrajectory(const Pose2& start, std::vector<MotionPiece> pieces);
+  Pose2 pose(double t) const override;
+  /// Forward speed [m/s] and yaw rate [rad/s] at time t [s].
+  double speed(double t) const;
+  double yawRate(double t) const { return pieces_[pieceAt(t)].yaw_rate; }
+  const std::vector<MotionPiece>& pieces() const { return pieces_; }
+  const Pose2& start() const { return starts_.front(); }
+
+ private:
+  std::size_t pieceAt(double t) const;
+
+  std::vector<MotionPiece> pieces_;
+  std::vector<Pose2> starts_;        // pose at the start of each piece
+  std::vector<double> begin_times_;  // [s]
 };
 
 /// A rotating 2D LIDAR. Beams are evenly spaced in angle and in time: one revolution per scan period.

@@ -1,0 +1,42 @@
+// A core::MotionSource answered by a tf2::BufferCore (DESIGN §3): the base pose in the fixed frame.
+#pragma once
+
+#include <tf2/buffer_core.h>
+
+#include <deque>
+#include <string>
+
+#include "lidar_deskew/core/motion.h"
+
+namespace lidar_deskew::ros_adapter {
+
+/// Looks up fixed_frame -> base_frame in a tf2 buffer. tf2 interpolates linearly between its samples;
+/// the times of those samples, when fed through addSampleTime(), become knots of the correction so
+/// that knots reproduce per-beam lookups exactly. Never extrapolates: times tf does not cover throw
+/// core::MotionUnavailable with tf2's message.
+class TfMotionSource final : public core::MotionSource {
+ public:
+  TfMotionSource(const tf2::BufferCore& buffer, std::string fixed_frame, std::string base_frame)
+      : buffer_(buffer), fixed_frame_(std::move(fixed_frame)), base_frame_(std::move(base_frame)) {}
+
+  mrpt::poses::CPose3D basePose(core::TimeNs time) const override;
+  void appendSampleTimes(core::TimeNs begin, core::TimeNs end,
+                         std::vector<core::TimeNs>& times) const override;
+
+  /// Records that tf received a sample of the fixed -> base chain at `time` (out-of-order and repeated
+  /// times are fine). Keeps the newest `capacity` times.
+  void addSampleTime(core::TimeNs time);
+  void clearSampleTimes() { sample_times_.clear(); }
+
+  const std::string& fixedFrame() const { return fixed_frame_; }
+  const std::string& baseFrame() const { return base_frame_; }
+
+ private:
+  static constexpr std::size_t kCapacity = 4096;
+  const tf2::BufferCore& buffer_;
+  std::string fixed_frame_;
+  std::string base_frame_;
+  std::deque<core::TimeNs> sample_times_;  // sorted, unique
+};
+
+}  // namespace lidar_deskew::ros_adapter

@@ -1,0 +1,38 @@
+#include "lidar_deskew/ros/tf_motion.h"
+
+#include <tf2/exceptions.h>
+
+#include <algorithm>
+
+#include "lidar_deskew/ros/conversions.h"
+
+namespace lidar_deskew::ros_adapter {
+
+mrpt::poses::CPose3D TfMotionSource::basePose(core::TimeNs time) const {
+  try {
+    return toPose(buffer_.lookupTransform(fixed_frame_, base_frame_, toRosTime(time)).transform);
+  } catch (const tf2::TransformException& error) {
+    throw core::MotionUnavailable(time, error.what());
+  }
+}
+
+void TfMotionSource::appendSampleTimes(core::TimeNs begin, core::TimeNs end,
+                                       std::vector<core::TimeNs>& times) const {
+  auto it = std::upper_bound(sample_times_.begin(), sample_times_.end(), begin);
+  for (; it != sample_times_.end() && *it < end; ++it)
+    times.push_back(*it);
+}
+
+void TfMotionSource::addSampleTime(core::TimeNs time) {
+  if (sample_times_.empty() || time > sample_times_.back()) {
+    sample_times_.push_back(time);
+  } else {
+    const auto it = std::lower_bound(sample_times_.begin(), sample_times_.end(), time);
+    if (it == sample_times_.end() || *it != time)
+      sample_times_.insert(it, time);
+  }
+  while (sample_times_.size() > kCapacity)
+    sample_times_.pop_front();
+}
+
+}  // namespace lidar_deskew::ros_adapter
