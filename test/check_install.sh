@@ -7,10 +7,14 @@ status=0
 for path in \
   lib/liblidar_deskew_core.so \
   lib/liblidar_deskew_sim.so \
+  lib/liblidar_deskew_ros.so \
   lib/lidar_deskew/deskew_core_demo \
+  lib/lidar_deskew/deskew_simulate \
+  lib/lidar_deskew/deskew_metrics \
   include/lidar_deskew/core/deskew.h \
   include/lidar_deskew/core/rebin.h \
   include/lidar_deskew/sim/sim.h \
+  include/lidar_deskew/ros/tf_motion.h \
   share/lidar_deskew/package.xml \
   share/lidar_deskew/nodelets.xml \
   share/lidar_deskew/launch/core_demo.launch \
@@ -22,5 +26,7 @@ if [ $status -eq 0 ]; then
   # as a user would: source the install space, then run from it
   (set +u; source "$prefix/setup.bash"; "$prefix/lib/lidar_deskew/deskew_core_demo" | grep -q "UTM-30LX") ||
     { echo "installed demo did not run"; status=1; }
+  (set +u; source "$prefix/setup.bash"; "$prefix/lib/lidar_deskew/deskew_simulate" --list | grep -q "ILD26TRI/high/arc") ||
+    { echo "installed deskew_simulate did not run"; status=1; }
 fi
 exit $status

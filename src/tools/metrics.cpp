@@ -2,7 +2,8 @@
 // for the raw scans, our correction (cloud and re-binned scan) and laser_geometry's fixed-frame
 // transformLaserScanToPointCloud.
 //
-//   deskew_metrics BAG TRUTH [--markdown] [--knot-interval S] [--figure-csv FILE] [--figure-scan K]
+//   deskew_metrics BAG TRUTH [--markdown] [--knot-interval S] [--rebin-gap-factor F] [--rebin-min-gap M]
+//                  [--figure-csv FILE] [--figure-scan K]
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -14,9 +15,11 @@
 namespace {
 
 int usage(const char* program) {
-  std::fprintf(stderr,
-               "usage: %s BAG TRUTH [--markdown] [--knot-interval S] [--figure-csv FILE] [--figure-scan K]\n",
-               program);
+  std::fprintf(
+      stderr,
+      "usage: %s BAG TRUTH [--markdown] [--knot-interval S] [--rebin-gap-factor F] [--rebin-min-gap M]\n"
+      "          [--figure-csv FILE] [--figure-scan K]\n",
+      program);
   return 2;
 }
 
@@ -40,6 +43,10 @@ int main(int argc, char** argv) {
       markdown = true;
     } else if (arg == "--knot-interval" && has_value) {
       options.deskew.knot_interval = std::atof(argv[++a]);
+    } else if (arg == "--rebin-gap-factor" && has_value) {
+      options.rebin.gap_factor = std::atof(argv[++a]);
+    } else if (arg == "--rebin-min-gap" && has_value) {
+      options.rebin.min_gap = std::atof(argv[++a]);
     } else if (arg == "--figure-csv" && has_value) {
       options.figure_csv = argv[++a];
     } else if (arg == "--figure-scan" && has_value) {
