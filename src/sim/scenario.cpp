@@ -72,6 +72,12 @@ Scenario findScenario(const std::string& name) {
   throw std::invalid_argument("unknown scenario '" + name + "'; known:" + names);
 }
 
+Scenario clockwiseVariant(Scenario scenario) {
+  scenario.lidar.clockwise = true;
+  scenario.name += "/clockwise";
+  return scenario;
+}
+
 Pose2 Truth::laserPose(core::TimeNs time) const {
   return trajectory().pose(core::nsToSeconds(time - epoch)).compose(mount);
 }

@@ -3,7 +3,7 @@
 //
 //   deskew_simulate --list
 //   deskew_simulate --scenario UTM-30LX/high/arc --bag out.bag --truth out.truth [--noise] [--seed N]
-//                   [--tf-rate HZ]
+//                   [--tf-rate HZ] [--clockwise]
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -18,7 +18,8 @@ int usage(const char* program) {
   std::fprintf(
       stderr,
       "usage: %s --list\n"
-      "       %s --scenario NAME --bag OUT.bag --truth OUT.truth [--noise] [--seed N] [--tf-rate HZ]\n",
+      "       %s --scenario NAME --bag OUT.bag --truth OUT.truth [--noise] [--seed N] [--tf-rate HZ]\n"
+      "          [--clockwise]\n",
       program, program);
   return 2;
 }
@@ -28,6 +29,7 @@ int usage(const char* program) {
 int main(int argc, char** argv) {
   using namespace lidar_deskew;
   std::string scenario_name, bag_path, truth_path;
+  bool clockwise = false;
   ros_adapter::SimBagOptions options;
   for (int a = 1; a < argc; ++a) {
     const std::string arg = argv[a];
@@ -42,6 +44,8 @@ int main(int argc, char** argv) {
       bag_path = argv[++a];
     } else if (arg == "--truth" && has_value) {
       truth_path = argv[++a];
+    } else if (arg == "--clockwise") {
+      clockwise = true;
     } else if (arg == "--noise") {
       options.noise = true;
     } else if (arg == "--seed" && has_value) {
@@ -59,7 +63,11 @@ int main(int argc, char** argv) {
     return 2;
   }
   try {
-    ros_adapter::writeSimulationBag(sim::findScenario(scenario_name), options, bag_path, truth_path);
+    sim::Scenario scenario = sim::findScenario(scenario_name);
+    if (clockwise) {
+      scenario = sim::clockwiseVariant(scenario);
+    }
+    ros_adapter::writeSimulationBag(scenario, options, bag_path, truth_path);
   } catch (const std::exception& error) {
     std::fprintf(stderr, "deskew_simulate: %s\n", error.what());
     return 1;

@@ -11,7 +11,8 @@
 namespace lidar_deskew::ros_adapter {
 namespace {
 
-Evaluation simulateAndEvaluate(const std::string& scenario, bool noise, double tf_rate = 50.0) {
+Evaluation simulateAndEvaluate(const std::string& scenario, bool noise, double tf_rate = 50.0,
+                               bool clockwise = false) {
   std::string stem = ::testing::TempDir() + "/paper_case_" + std::to_string(::getpid()) + "_";
   for (char c : scenario)
     stem += (c == '/' ? '_' : c);
@@ -19,7 +20,8 @@ Evaluation simulateAndEvaluate(const std::string& scenario, bool noise, double t
   SimBagOptions options;
   options.noise = noise;
   options.tf_rate = tf_rate;
-  writeSimulationBag(sim::findScenario(scenario), options, bag, truth);
+  const sim::Scenario found = sim::findScenario(scenario);
+  writeSimulationBag(clockwise ? sim::clockwiseVariant(found) : found, options, bag, truth);
   const Evaluation result = evaluateBag(bag, truth, EvaluateOptions());
   std::remove(bag.c_str());
   std::remove(truth.c_str());
@@ -59,6 +61,15 @@ TEST(PaperCases, HighSpeedArcFollowsTf) {
   const Evaluation at_50_hz = simulateAndEvaluate("ILD26TRI/high/arc", false, 50.0);
   EXPECT_LT(at_50_hz.cloud.max, 1.6);
   EXPECT_GT(at_50_hz.laser_geometry.rms, 10.0 * at_50_hz.cloud.rms);
+}
+
+// The clockwise variant of the sensor (negative angle increment) through the same bag and tf path.
+TEST(PaperCases, ClockwiseSensor) {
+  const Evaluation result = simulateAndEvaluate("ILD26TRI/normal/arc", false, 50.0, true);
+  EXPECT_EQ(result.scenario, "ILD26TRI/normal/arc/clockwise");
+  EXPECT_LT(result.cloud.rms, 0.5);
+  EXPECT_GT(result.raw.rms, 10.0);
+  EXPECT_LT(result.scan.p95, 0.5);
 }
 
 // Speed and turn rate changing inside each scan: tf at 200 Hz keeps its own interpolation error (a h^2 / 8

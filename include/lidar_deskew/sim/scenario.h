@@ -31,6 +31,8 @@ struct Scenario {
 std::vector<Scenario> paperScenarios();
 /// The scenario of that name; throws std::invalid_argument listing the names otherwise.
 Scenario findScenario(const std::string& name);
+/// The same experiment with the sensor turning clockwise (negative angle increment); name + "/clockwise".
+Scenario clockwiseVariant(Scenario scenario);
 
 /// What the metrics need to know about a simulated bag: the world, the true motion, the mount.
 struct Truth {
