@@ -1,0 +1,39 @@
+// The node's parameters: read once from the private namespace into one validated struct.
+#pragma once
+
+#include <ros/node_handle.h>
+
+#include <string>
+
+#include "lidar_deskew/core/deskew.h"
+#include "lidar_deskew/core/rebin.h"
+#include "lidar_deskew/core/scan.h"
+
+namespace lidar_deskew::ros_adapter {
+
+/// What to do with a scan whose sweep tf does not cover within tf_timeout.
+enum class OnTfFailure { kDrop, kPassThrough };
+
+struct DeskewParams {
+  std::string fixed_frame = "odom";      ///< frame the base moves in
+  std::string base_frame = "base_link";  ///< the robot's base; the mount is base -> scan frame
+  core::TimingConfig timing;             ///< stamp_at, scan_period [s], max_sweep_duration [s]
+  core::DeskewConfig deskew;             ///< reference, knot_interval [s] (0 when exact)
+  core::RebinConfig rebin;               ///< rebin_min_gap [m], rebin_gap_factor
+  bool exact = false;                    ///< look tf up for every beam (verification, benchmarks)
+  double tf_timeout = 0.2;               ///< [s] longest wait for tf to cover a sweep's last beam
+  OnTfFailure on_tf_failure = OnTfFailure::kDrop;
+  double max_extrapolation = 0.0;   ///< [s] extrapolate tf this far with the newest velocity; 0 = never
+  int queue_size = 10;              ///< scans waiting for tf at most (older ones are dropped)
+  double diagnostics_period = 1.0;  ///< [s]
+
+  /// Reads every parameter from `private_nh` (defaults above for the absent ones) and validates.
+  /// Throws core::InvalidInput naming the parameter for a bad value or type.
+  static DeskewParams load(const ros::NodeHandle& private_nh);
+  /// Throws core::InvalidInput naming the first bad parameter.
+  void validate() const;
+};
+
+std::string toString(OnTfFailure value);
+
+}  // namespace lidar_deskew::ros_adapter

@@ -1,0 +1,28 @@
+// lidar_deskew/LaserScanDeskew: the live deskew as a nodelet (LaserScanDeskewNode does the work).
+#include <nodelet/nodelet.h>
+#include <pluginlib/class_list_macros.hpp>
+
+#include <memory>
+
+#include "lidar_deskew/ros/deskew_node.h"
+
+namespace lidar_deskew {
+
+class LaserScanDeskewNodelet : public nodelet::Nodelet {
+ private:
+  void onInit() override {
+    try {
+      node_ = std::make_unique<ros_adapter::LaserScanDeskewNode>(getNodeHandle(), getPrivateNodeHandle(),
+                                                                 getName());
+    } catch (const core::InvalidInput& error) {
+      NODELET_FATAL("%s: invalid parameter %s; not started", getName().c_str(), error.what());
+      throw;
+    }
+  }
+
+  std::unique_ptr<ros_adapter::LaserScanDeskewNode> node_;
+};
+
+}  // namespace lidar_deskew
+
+PLUGINLIB_EXPORT_CLASS(lidar_deskew::LaserScanDeskewNodelet, nodelet::Nodelet)

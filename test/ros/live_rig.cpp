@@ -1,0 +1,175 @@
+#include "live_rig.h"
+
+#include <sensor_msgs/point_cloud2_iterator.h>
+#include <tf2_msgs/TFMessage.h>
+
+#include <cmath>
+
+#include "lidar_deskew/ros/conversions.h"
+
+namespace lidar_deskew::test {
+namespace {
+
+geometry_msgs::TransformStamped stamped(const std::string& parent, const std::string& child,
+                                        const ros::Time& stamp, const sim::Pose2& pose) {
+  geometry_msgs::TransformStamped transform;
+  transform.header.frame_id = parent;
+  transform.header.stamp = stamp;
+  transform.child_frame_id = child;
+  transform.transform = ros_adapter::toTransform(
+      mrpt::poses::CPose3D::FromXYZYawPitchRoll(pose.x, pose.y, 0.0, pose.yaw, 0.0, 0.0));
+  return transform;
+}
+
+}  // namespace
+
+LiveRig::LiveRig()
+    : world(sim::World::demoRoom()),
+      trajectory({-2.0, -1.0, 0.3}, 6.0, 5.0),
+      mount{0.25, 0.05, 0.1},
+      model(sim::LidarModel::utm30lx360()) {
+  // Whole milliseconds: stamps then land exactly on the tf sample grid.
+  epoch_.fromNSec(ros::Time::now().toNSec() / 1'000'000 * 1'000'000);
+  tf_publisher_ = nh_.advertise<tf2_msgs::TFMessage>("/tf", 100);
+  tf_static_publisher_ = nh_.advertise<tf2_msgs::TFMessage>("/tf_static", 1, true);
+  scan_publisher = nh_.advertise<sensor_msgs::LaserScan>("scan", 10);
+}
+
+void LiveRig::subscribeOutputs() {
+  scan_subscriber_ = nh_.subscribe<sensor_msgs::LaserScan>(
+      "scan_deskewed", 20, [this](const sensor_msgs::LaserScan::ConstPtr& scan) { scans_.push_back(scan); });
+  cloud_subscriber_ = nh_.subscribe<sensor_msgs::PointCloud2>(
+      "scan_deskewed_points", 20,
+      [this](const sensor_msgs::PointCloud2::ConstPtr& cloud) { clouds_.push_back(cloud); });
+  diagnostics_subscriber_ = nh_.subscribe<diagnostic_msgs::DiagnosticArray>(
+      "/diagnostics", 20, [this](const diagnostic_msgs::DiagnosticArray::ConstPtr& array) {
+        for (const auto& status : array->status) {
+          if (status.name.find("deskew") == std::string::npos)
+            continue;
+          for (const auto& value : status.values)
+            diagnostics_[value.key] = value.value;
+        }
+      });
+}
+
+void LiveRig::unsubscribeOutputs() {
+  scan_subscriber_.shutdown();
+  cloud_subscriber_.shutdown();
+}
+
+void LiveRig::publishMount() {
+  // The deskew listens to tf from its start; wait until it is connected to this process's publishers.
+  waitFor(
+      [&] { return tf_publisher_.getNumSubscribers() > 0 && tf_static_publisher_.getNumSubscribers() > 0; },
+      10.0);
+  tf2_msgs::TFMessage message;
+  message.transforms.push_back(stamped("base_link", "laser", epoch_, mount));
+  tf_static_publisher_.publish(message);
+}
+
+void LiveRig::publishTfUntil(double t) {
+  for (double sample = std::round(tf_until_ / 0.02) * 0.02 + 0.02; sample <= t + 1e-9; sample += 0.02) {
+    tf2_msgs::TFMessage message;
+    message.transforms.push_back(stamped("odom", "base_link", stampOf(sample), trajectory.pose(sample)));
+    tf_publisher_.publish(message);
+    tf_until_ = sample;
+  }
+}
+
+sim::SimulatedScan LiveRig::publishScan(double t,
+                                        const std::function<void(sensor_msgs::LaserScan&)>& modify) {
+  const sim::SimulatedScan simulated = sim::simulateScan(world, trajectory, mount, model, epoch_.toNSec(), t);
+  sensor_msgs::LaserScan scan;
+  scan.header.stamp = ros_adapter::toRosTime(simulated.scan.stamp);
+  scan.header.frame_id = "laser";
+  scan.angle_min = simulated.scan.angle_min;
+  scan.angle_max = simulated.scan.angle_max;
+  scan.angle_increment = simulated.scan.angle_increment;
+  scan.time_increment = simulated.scan.time_increment;
+  scan.scan_time = simulated.scan.scan_time;
+  scan.range_min = simulated.scan.range_min;
+  scan.range_max = simulated.scan.range_max;
+  scan.ranges = simulated.scan.ranges;
+  if (modify)
+    modify(scan);
+  scan_publisher.publish(scan);
+  return simulated;
+}
+
+bool LiveRig::waitFor(const std::function<bool()>& done, double timeout) {
+  const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(timeout);
+  while (!done() && ros::WallTime::now() < end && ros::ok()) {
+    ros::spinOnce();
+    ros::WallDuration(0.002).sleep();
+  }
+  return done();
+}
+
+bool LiveRig::waitForOutputs(const ros::Time& stamp, double timeout, sensor_msgs::LaserScan::ConstPtr& scan,
+                             sensor_msgs::PointCloud2::ConstPtr& cloud) {
+  scan.reset();
+  cloud.reset();
+  waitFor(
+      [&] {
+        for (const auto& s : scans_) {
+          if (s->header.stamp == stamp)
+            scan = s;
+        }
+        for (const auto& c : clouds_) {
+          if (c->header.stamp == stamp)
+            cloud = c;
+        }
+        return scan && cloud;
+      },
+      timeout);
+  return scan && cloud;
+}
+
+std::string LiveRig::diagnostic(const std::string& key) const {
+  const auto it = diagnostics_.find(key);
+  return it == diagnostics_.end() ? std::string() : it->second;
+}
+
+double LiveRig::diagnosticNumber(const std::string& key) const {
+  const std::string text = diagnostic(key);
+  return text.empty() ? -1.0 : std::stod(text);
+}
+
+ros::Time LiveRig::stampOf(double t) const {
+  return ros_adapter::toRosTime(epoch_.toNSec() + core::secondsToNs(t));
+}
+double LiveRig::secondsOf(const ros::Time& stamp) const {
+  return (stamp - epoch_).toSec();
+}
+
+std::vector<double> cloudDistances(const LiveRig& rig, const sensor_msgs::PointCloud2& cloud) {
+  const sim::Pose2 laser = rig.trajectory.pose(rig.secondsOf(cloud.header.stamp)).compose(rig.mount);
+  std::vector<double> distances;
+  for (sensor_msgs::PointCloud2ConstIterator<float> x(cloud, "x"), y(cloud, "y"); x != x.end(); ++x, ++y) {
+    distances.push_back(rig.world.distanceTo(laser.apply({*x, *y})));
+  }
+  return distances;
+}
+
+std::vector<double> scanDistances(const LiveRig& rig, const sensor_msgs::LaserScan& scan) {
+  const sim::Pose2 laser = rig.trajectory.pose(rig.secondsOf(scan.header.stamp)).compose(rig.mount);
+  std::vector<double> distances;
+  for (std::size_t b = 0; b < scan.ranges.size(); ++b) {
+    const double range = scan.ranges[b];
+    if (!std::isfinite(range) || range < scan.range_min || range > scan.range_max)
+      continue;
+    const double angle = scan.angle_min + b * static_cast<double>(scan.angle_increment);
+    distances.push_back(
+        rig.world.distanceTo(laser.apply(range * Eigen::Vector2d(std::cos(angle), std::sin(angle)))));
+  }
+  return distances;
+}
+
+double rms(const std::vector<double>& values) {
+  double sum = 0.0;
+  for (double v : values)
+    sum += v * v;
+  return values.empty() ? 0.0 : std::sqrt(sum / values.size());
+}
+
+}  // namespace lidar_deskew::test

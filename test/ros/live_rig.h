@@ -1,0 +1,70 @@
+// Test support for the live deskew: plays the simulator's trajectory through /tf (odom -> base_link at
+// 50 Hz, base_link -> laser static) and publishes its scans, as a robot would; collects the outputs.
+#pragma once
+
+#include <diagnostic_msgs/DiagnosticArray.h>
+#include <ros/ros.h>
+#include <sensor_msgs/LaserScan.h>
+#include <sensor_msgs/PointCloud2.h>
+
+#include <deque>
+#include <functional>
+#include <map>
+#include <string>
+
+#include "lidar_deskew/sim/sim.h"
+
+namespace lidar_deskew::test {
+
+class LiveRig {
+ public:
+  /// Advertises /tf, /tf_static (latched) and `scan`; t = 0 of the simulation is ros::Time::now().
+  LiveRig();
+
+  /// Subscribes to scan_deskewed, scan_deskewed_points (PointCloud2) and /diagnostics.
+  void subscribeOutputs();
+  void unsubscribeOutputs();
+
+  /// Waits until the deskew is connected to /tf and /tf_static, then publishes base_link -> laser.
+  void publishMount();
+  /// odom -> base_link samples every 20 ms from the last published one up to t [s] (inclusive).
+  void publishTfUntil(double t);
+  /// The scan whose first beam is at t [s] (noise off), as the driver publishes it.
+  sim::SimulatedScan publishScan(double t, const std::function<void(sensor_msgs::LaserScan&)>& modify = {});
+
+  /// Spins until `done` or `timeout` [s]; returns done().
+  bool waitFor(const std::function<bool()>& done, double timeout);
+  /// The outputs stamped `stamp`, when both arrived within `timeout` [s].
+  bool waitForOutputs(const ros::Time& stamp, double timeout, sensor_msgs::LaserScan::ConstPtr& scan,
+                      sensor_msgs::PointCloud2::ConstPtr& cloud);
+  /// The newest value of a diagnostics key of the deskew status (empty when none arrived yet).
+  std::string diagnostic(const std::string& key) const;
+  double diagnosticNumber(const std::string& key) const;
+
+  ros::Time stampOf(double t) const;
+  double secondsOf(const ros::Time& stamp) const;
+
+  const sim::World world;
+  const sim::ArcTrajectory trajectory;
+  const sim::Pose2 mount;
+  const sim::LidarModel model;
+  ros::Publisher scan_publisher;
+
+ private:
+  ros::NodeHandle nh_;
+  ros::Time epoch_;
+  double tf_until_ = -0.1;
+  ros::Publisher tf_publisher_, tf_static_publisher_;
+  ros::Subscriber scan_subscriber_, cloud_subscriber_, diagnostics_subscriber_;
+  std::deque<sensor_msgs::LaserScan::ConstPtr> scans_;
+  std::deque<sensor_msgs::PointCloud2::ConstPtr> clouds_;
+  std::map<std::string, std::string> diagnostics_;
+};
+
+/// Distances [m] of the corrected cloud's points, and of the corrected scan's beam endpoints, to the
+/// true walls, placed with the laser's true pose at the output stamp (the reference time).
+std::vector<double> cloudDistances(const LiveRig& rig, const sensor_msgs::PointCloud2& cloud);
+std::vector<double> scanDistances(const LiveRig& rig, const sensor_msgs::LaserScan& scan);
+double rms(const std::vector<double>& values);
+
+}  // namespace lidar_deskew::test
