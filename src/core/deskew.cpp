@@ -74,23 +74,35 @@ void KnotTrajectory::build(TimeNs origin, double span_begin, double span_end, Ti
   if (!(span_end >= span_begin))
     throw InvalidInput("time_offset", "span end before span begin");
 
-  // Knot times: both ends, every knot_interval between, and the source's own sample times.
+  // Knot times: both ends and the source's own sample times; and every knot_interval between unless
+  // the source's sample times are all there is to its motion (then they reproduce it exactly).
   const TimeNs begin_time = origin + secondsToNs(span_begin);
   const TimeNs end_time = origin + secondsToNs(span_end);
   std::vector<TimeNs>& times = scratch_times_;
   times.clear();
   times.push_back(begin_time);
-  const TimeNs step = secondsToNs(knot_interval);
-  for (TimeNs t = begin_time + step; t < end_time; t += step)
-    times.push_back(t);
+  if (!motion.sampleTimesComplete()) {
+    const TimeNs step = secondsToNs(knot_interval);
+    for (TimeNs t = begin_time + step; t < end_time; t += step)
+      times.push_back(t);
+  }
   motion.appendSampleTimes(begin_time, end_time, times);
   times.push_back(end_time);
   std::sort(times.begin(), times.end());
   times.erase(std::unique(times.begin(), times.end()), times.end());
 
-  // The chain prefix, then one MRPT composition per knot.
-  const mrpt::poses::CPose3D laser_from_reference_base =
-      laserFromReferenceBase(reference_time, mount, motion);
+  // One motion query per knot (the reference time is usually one of them), then the chain prefix and
+  // one MRPT composition per knot.
+  std::vector<mrpt::poses::CPose3D>& base_poses = scratch_poses_;
+  base_poses.clear();
+  for (const TimeNs time : times)
+    base_poses.push_back(motion.basePose(time));
+  const auto reference_knot = std::lower_bound(times.begin(), times.end(), reference_time);
+  const mrpt::poses::CPose3D base_at_reference =
+      reference_knot != times.end() && *reference_knot == reference_time
+          ? base_poses[static_cast<std::size_t>(reference_knot - times.begin())]
+          : motion.basePose(reference_time);
+  const mrpt::poses::CPose3D laser_from_reference_base = (-mount) + (-base_at_reference);
   mount_rotation_ = detail::rotationOf(mount);
   mount_translation_ = detail::translationOf(mount);
 
@@ -99,7 +111,7 @@ void KnotTrajectory::build(TimeNs origin, double span_begin, double span_end, Ti
   lefts.reserve(times.size());
   for (std::size_t k = 0; k < times.size(); ++k) {
     knot_offsets_[k] = nsToSeconds(times[k] - origin);
-    lefts.push_back(laser_from_reference_base + motion.basePose(times[k]));
+    lefts.push_back(laser_from_reference_base + base_poses[k]);
   }
 
   planar_ = rotatesAboutZOnly(mount_rotation_) && rotatesAboutZOnly(detail::rotationOf(lefts.back()));

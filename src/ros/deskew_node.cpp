@@ -16,6 +16,9 @@ std::atomic<const void*> last_published_cloud{nullptr};
 /// A time jump backwards larger than this (bag loop, /clock reset) clears the tf cache and the queue.
 const ros::Duration kTimeJump(1.0);
 
+/// Scans over which the latency percentile is taken.
+constexpr std::size_t kLatencies = 1000;
+
 /// The base stands still: correcting with it is the plain polar projection (pass_through clouds).
 class StandingStill final : public core::MotionSource {
  public:
@@ -120,6 +123,20 @@ const void* LaserScanDeskewNode::lastPublishedCloud() {
   return last_published_cloud.load();
 }
 
+double LaserScanDeskewNode::latencyP99() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return latencyP99Locked();
+}
+
+double LaserScanDeskewNode::latencyP99Locked() const {
+  if (latencies_.empty())
+    return 0.0;
+  std::vector<double> sorted = latencies_;
+  const std::size_t rank = static_cast<std::size_t>(std::ceil(0.99 * sorted.size())) - 1;
+  std::nth_element(sorted.begin(), sorted.begin() + rank, sorted.end());
+  return sorted[rank];
+}
+
 LaserScanDeskewNode::Counters LaserScanDeskewNode::counters() const {
   std::lock_guard<std::mutex> lock(mutex_);
   return counters_;
@@ -137,11 +154,12 @@ void LaserScanDeskewNode::connectCallback() {
 }
 
 void LaserScanDeskewNode::scanCallback(const sensor_msgs::LaserScan::ConstPtr& message) {
+  const ros::WallTime arrival = ros::WallTime::now();
   std::lock_guard<std::mutex> lock(mutex_);
   ++counters_.received;
   Pending pending;
   pending.message = message;
-  pending.arrival = ros::WallTime::now();
+  pending.arrival = arrival;
   try {
     if (message->header.frame_id.empty())
       throw core::InvalidInput("header.frame_id", "is empty");
@@ -170,10 +188,11 @@ void LaserScanDeskewNode::scanCallback(const sensor_msgs::LaserScan::ConstPtr& m
                       params_.queue_size);
     pending_.pop_front();
   }
-  processReady();
+  processReady(arrival);
 }
 
 void LaserScanDeskewNode::tfCallback(const tf2_msgs::TFMessage::ConstPtr& message, bool is_static) {
+  const ros::WallTime arrival = ros::WallTime::now();
   std::lock_guard<std::mutex> lock(mutex_);
   for (const geometry_msgs::TransformStamped& transform : message->transforms) {
     if (!is_static) {
@@ -193,14 +212,14 @@ void LaserScanDeskewNode::tfCallback(const tf2_msgs::TFMessage::ConstPtr& messag
       ROS_WARN_THROTTLE(1.0, "%s: ignoring a transform: %s", name_.c_str(), error.what());
     }
   }
-  processReady();
+  processReady(arrival);
 }
 
 void LaserScanDeskewNode::timerCallback(const ros::WallTimerEvent& /*event*/) {
   {
     std::lock_guard<std::mutex> lock(mutex_);
-    processReady();
     const ros::WallTime now = ros::WallTime::now();
+    processReady(now);
     while (!pending_.empty() && (now - pending_.front().arrival).toSec() > params_.tf_timeout) {
       const Pending expired = std::move(pending_.front());
       pending_.pop_front();
@@ -238,14 +257,14 @@ bool LaserScanDeskewNode::sweepCovered(const Pending& pending, bool& extrapolate
   return extrapolate;
 }
 
-void LaserScanDeskewNode::processReady() {
+void LaserScanDeskewNode::processReady(ros::WallTime trigger) {
   while (!pending_.empty()) {
     bool extrapolate = false;
     if (!sweepCovered(pending_.front(), extrapolate))
       return;  // tf only grows: later scans wait too
     const Pending ready = std::move(pending_.front());
     pending_.pop_front();
-    correctAndPublish(ready, extrapolate);
+    correctAndPublish(ready, extrapolate, trigger);
   }
 }
 
@@ -269,9 +288,9 @@ bool LaserScanDeskewNode::lookupMount(const std::string& frame, mrpt::poses::CPo
   return true;
 }
 
-void LaserScanDeskewNode::correctAndPublish(const Pending& pending, bool extrapolate) {
+void LaserScanDeskewNode::correctAndPublish(const Pending& pending, bool extrapolate, ros::WallTime trigger) {
   const ros::WallTime start = ros::WallTime::now();
-  const double tf_wait = (start - pending.arrival).toSec();
+  const double tf_wait = std::max(0.0, (trigger - pending.arrival).toSec());
   mrpt::poses::CPose3D mount;
   if (!lookupMount(pending.message->header.frame_id, mount)) {
     ++counters_.dropped_mount;
@@ -323,7 +342,14 @@ void LaserScanDeskewNode::correctAndPublish(const Pending& pending, bool extrapo
   cloud_publisher_.publish(cloud);
 
   ++counters_.published;
-  const double processing = (ros::WallTime::now() - start).toSec();
+  const ros::WallTime done = ros::WallTime::now();
+  const double processing = (done - start).toSec();
+  if (latencies_.size() < kLatencies) {
+    latencies_.push_back((done - trigger).toSec());
+  } else {
+    latencies_[next_latency_] = (done - trigger).toSec();
+    next_latency_ = (next_latency_ + 1) % kLatencies;
+  }
   counters_.tf_wait_total += tf_wait;
   counters_.tf_wait_max = std::max(counters_.tf_wait_max, tf_wait);
   counters_.processing_total += processing;
@@ -381,6 +407,7 @@ void LaserScanDeskewNode::produceDiagnostics(diagnostic_updater::DiagnosticStatu
   status.add("tf wait max [ms]", 1e3 * counters_.tf_wait_max);
   status.add("processing mean [us]", 1e6 * counters_.processing_total / done);
   status.add("processing max [us]", 1e6 * counters_.processing_max);
+  status.add("latency p99 [ms]", 1e3 * latencyP99Locked());
   counters_at_last_diagnostics_ = counters_;
   last_diagnostics_ = now;
 }

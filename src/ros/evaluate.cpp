@@ -108,10 +108,8 @@ Evaluation evaluateBag(const std::string& bag_path, const std::string& truth_pat
       const bool is_static = message.getTopic() == "/tf_static";
       for (const geometry_msgs::TransformStamped& transform : transforms->transforms) {
         buffer.setTransform(transform, "bag", is_static);
-        if (!is_static && transform.child_frame_id == options.base_frame &&
-            transform.header.frame_id == options.fixed_frame) {
-          motion.addSampleTime(toNs(transform.header.stamp));
-        }
+        if (!is_static)
+          motion.observe(transform);
       }
     } else if (message.getTopic() == options.scan_topic) {
       if (auto scan = message.instantiate<sensor_msgs::LaserScan>())

@@ -23,6 +23,21 @@ void TfMotionSource::appendSampleTimes(core::TimeNs begin, core::TimeNs end,
     times.push_back(*it);
 }
 
+void TfMotionSource::observe(const geometry_msgs::TransformStamped& transform) {
+  const bool from_fixed = transform.header.frame_id == fixed_frame_;
+  const bool to_base = transform.child_frame_id == base_frame_;
+  if (to_base)
+    (from_fixed ? direct_link_seen_ : other_link_seen_) = true;
+  if (to_base || from_fixed)
+    addSampleTime(toNs(transform.header.stamp));
+}
+
+void TfMotionSource::clearSampleTimes() {
+  sample_times_.clear();
+  direct_link_seen_ = false;
+  other_link_seen_ = false;
+}
+
 void TfMotionSource::addSampleTime(core::TimeNs time) {
   if (sample_times_.empty() || time > sample_times_.back()) {
     sample_times_.push_back(time);

@@ -38,6 +38,42 @@ TEST(ZeroCopy, SameTypeSubscriberInTheManagerGetsThePublishedObject) {
   manager.unload("/lidar_deskew");
 }
 
+// A bad parameter stops the node before it advertises or subscribes anything, naming the parameter.
+TEST(Parameters, BadValueIsNamedAndNothingStartsHalfConfigured) {
+  ros::NodeHandle nh("bad_params");
+  ros::NodeHandle private_nh("bad_params/deskew");
+  const auto fieldOf = [&](const std::string& name, const auto& value) -> std::string {
+    private_nh.deleteParam("");
+    private_nh.setParam(name, value);
+    try {
+      ros_adapter::LaserScanDeskewNode node(nh, private_nh, "bad_params");
+    } catch (const core::InvalidInput& error) {
+      return error.field();
+    }
+    return "";
+  };
+  EXPECT_EQ(fieldOf("tf_timeout", -1.0), "tf_timeout");
+  EXPECT_EQ(fieldOf("reference", std::string("centre")), "reference");
+  EXPECT_EQ(fieldOf("on_tf_failure", std::string("ignore")), "on_tf_failure");
+  EXPECT_EQ(fieldOf("knot_interval", std::string("fast")), "knot_interval");
+  EXPECT_EQ(fieldOf("base_frame", std::string("odom")), "base_frame");
+  EXPECT_EQ(fieldOf("queue_size", 0), "queue_size");
+  EXPECT_EQ(fieldOf("rebin_gap_factor", -2.0), "rebin_gap_factor");
+  const auto advertised = [] {
+    ros::master::V_TopicInfo topics;
+    ros::master::getTopics(topics);
+    int count = 0;
+    for (const auto& topic : topics) count += topic.name.rfind("/bad_params/", 0) == 0;
+    return count;
+  };
+  EXPECT_EQ(advertised(), 0);
+  // The check sees a node that did start: a good value advertises both outputs.
+  private_nh.deleteParam("");
+  private_nh.setParam("tf_timeout", 0.5);
+  ros_adapter::LaserScanDeskewNode node(nh, private_nh, "bad_params");
+  EXPECT_EQ(advertised(), 2);
+}
+
 }  // namespace
 }  // namespace lidar_deskew::test
 

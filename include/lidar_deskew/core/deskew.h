@@ -22,8 +22,9 @@ struct DeskewConfig {
   /// The time all points are re-expressed at.
   Reference reference = Reference::kStart;
   /// [s] spacing of the interpolation knots: the motion source is queried at the sweep's first and
-  /// last beam, every knot_interval between, and at its own sample times
-  /// (MotionSource::appendSampleTimes); beams between knots use the interpolated relative motion.
+  /// last beam, at its own sample times (MotionSource::appendSampleTimes) and, unless those are all
+  /// of its motion (MotionSource::sampleTimesComplete), every knot_interval between; beams between
+  /// knots use the interpolated relative motion.
   /// 0 = exact mode: one motion query and one MRPT composition per beam (for verification).
   double knot_interval = 0.005;
 
@@ -114,6 +115,7 @@ class KnotTrajectory {
   bool planar_ = false;
   mutable std::size_t hint_ = 0;
   std::vector<TimeNs> scratch_times_;
+  std::vector<mrpt::poses::CPose3D> scratch_poses_;
 };
 
 /// Corrects planar scans and point sets. Keeps caches between calls (beam directions of the last

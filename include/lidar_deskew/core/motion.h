@@ -25,6 +25,10 @@ class MotionSource {
   /// slope (its own samples). The correction places interpolation knots there too, so piecewise
   /// motion is reproduced exactly. Default: none known.
   virtual void appendSampleTimes(TimeNs begin, TimeNs end, std::vector<TimeNs>& times) const;
+
+  /// True when the source's motion is linear (lerp + slerp) between the times appendSampleTimes
+  /// reports, so knots there reproduce it exactly and no others are needed. Default: false.
+  virtual bool sampleTimesComplete() const { return false; }
 };
 
 /// Interpolates between two poses like tf2 does: translation linearly, rotation by slerp on the
@@ -53,6 +57,7 @@ class PoseSamples final : public MotionSource {
 
   mrpt::poses::CPose3D basePose(TimeNs time) const override;
   void appendSampleTimes(TimeNs begin, TimeNs end, std::vector<TimeNs>& times) const override;
+  bool sampleTimesComplete() const override { return true; }
 
  private:
   struct Sample {

@@ -63,6 +63,10 @@ class LaserScanDeskewNode {
   const DeskewParams& params() const { return params_; }
   Counters counters() const;
 
+  /// [s] 99th percentile of the latency from the callback in which tf covered a scan's last beam (or
+  /// the scan arrived already covered) to its outputs being published, over the last 1000 scans.
+  double latencyP99() const;
+
   /// Address of the last cloud any instance in this process published (tests prove zero-copy with it).
   static const void* lastPublishedCloud();
 
@@ -80,13 +84,14 @@ class LaserScanDeskewNode {
   void timerCallback(const ros::WallTimerEvent& event);
 
   // All below run with mutex_ held.
-  void processReady();
+  void processReady(ros::WallTime trigger);
   bool sweepCovered(const Pending& pending, bool& extrapolate) const;
-  void correctAndPublish(const Pending& pending, bool extrapolate);
+  void correctAndPublish(const Pending& pending, bool extrapolate, ros::WallTime trigger);
   void failOnTf(const Pending& pending, const std::string& reason);
   bool lookupMount(const std::string& frame, mrpt::poses::CPose3D& mount);
   void resetForTimeJump(const std::string& what);
   void produceDiagnostics(diagnostic_updater::DiagnosticStatusWrapper& status);
+  double latencyP99Locked() const;
 
   ros::NodeHandle nh_;
   ros::NodeHandle private_nh_;
@@ -104,6 +109,8 @@ class LaserScanDeskewNode {
   ros::Time newest_tf_time_;
   ros::Time newest_scan_time_;
   Counters counters_;
+  std::vector<double> latencies_;  // [s] ring of the last kLatencies
+  std::size_t next_latency_ = 0;
   Counters counters_at_last_diagnostics_;
   ros::WallTime last_diagnostics_;
 

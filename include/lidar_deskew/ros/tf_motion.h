@@ -1,6 +1,7 @@
 // A core::MotionSource answered by a tf2::BufferCore (DESIGN §3): the base pose in the fixed frame.
 #pragma once
 
+#include <geometry_msgs/TransformStamped.h>
 #include <tf2/buffer_core.h>
 
 #include <deque>
@@ -23,10 +24,15 @@ class TfMotionSource final : public core::MotionSource {
   void appendSampleTimes(core::TimeNs begin, core::TimeNs end,
                          std::vector<core::TimeNs>& times) const override;
 
-  /// Records that tf received a sample of the fixed -> base chain at `time` (out-of-order and repeated
-  /// times are fine). Keeps the newest `capacity` times.
+  /// Call with every non-static transform given to the buffer: records the stamps of those on the
+  /// fixed -> base chain (their times become knots), and whether fixed -> base is one direct link, in
+  /// which case those stamps are all the chain's samples (sampleTimesComplete). Keeps the newest 4096.
+  void observe(const geometry_msgs::TransformStamped& transform);
+  /// Records a sample time of the chain directly (out-of-order and repeated times are fine).
   void addSampleTime(core::TimeNs time);
-  void clearSampleTimes() { sample_times_.clear(); }
+  /// Forgets sample times and what was learnt about the chain (tf cache cleared).
+  void clearSampleTimes();
+  bool sampleTimesComplete() const override { return direct_link_seen_ && !other_link_seen_; }
 
   const std::string& fixedFrame() const { return fixed_frame_; }
   const std::string& baseFrame() const { return base_frame_; }
@@ -37,6 +43,8 @@ class TfMotionSource final : public core::MotionSource {
   std::string fixed_frame_;
   std::string base_frame_;
   std::deque<core::TimeNs> sample_times_;  // sorted, unique
+  bool direct_link_seen_ = false;          // a dynamic fixed -> base transform arrived
+  bool other_link_seen_ = false;           // base moved through another parent: a longer chain
 };
 
 }  // namespace lidar_deskew::ros_adapter
