@@ -18,6 +18,11 @@ for path in \
   share/lidar_deskew/package.xml \
   share/lidar_deskew/nodelets.xml \
   share/lidar_deskew/launch/core_demo.launch \
+  share/lidar_deskew/launch/deskew.launch \
+  share/lidar_deskew/config/deskew.yaml \
+  share/lidar_deskew/rviz/deskew.rviz \
+  lib/liblidar_deskew_nodelets.so \
+  lib/lidar_deskew/deskew_node \
   share/lidar_deskew/cmake/lidar_deskewConfig.cmake; do
   if [ -e "$prefix/$path" ]; then echo "ok      $path"; else echo "MISSING $path"; status=1; fi
 done

@@ -23,11 +23,11 @@ geometry_msgs::TransformStamped stamped(const std::string& parent, const std::st
 
 }  // namespace
 
-LiveRig::LiveRig()
+LiveRig::LiveRig(const sim::LidarModel& lidar)
     : world(sim::World::demoRoom()),
       trajectory({-2.0, -1.0, 0.3}, 6.0, 5.0),
       mount{0.25, 0.05, 0.1},
-      model(sim::LidarModel::utm30lx360()) {
+      model(lidar) {
   // Whole milliseconds: stamps then land exactly on the tf sample grid.
   epoch_.fromNSec(ros::Time::now().toNSec() / 1'000'000 * 1'000'000);
   tf_publisher_ = nh_.advertise<tf2_msgs::TFMessage>("/tf", 100);

@@ -19,7 +19,7 @@ namespace lidar_deskew::test {
 class LiveRig {
  public:
   /// Advertises /tf, /tf_static (latched) and `scan`; t = 0 of the simulation is ros::Time::now().
-  LiveRig();
+  explicit LiveRig(const sim::LidarModel& lidar = sim::LidarModel::utm30lx360());
 
   /// Subscribes to scan_deskewed, scan_deskewed_points (PointCloud2) and /diagnostics.
   void subscribeOutputs();

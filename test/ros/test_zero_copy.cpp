@@ -63,7 +63,8 @@ TEST(Parameters, BadValueIsNamedAndNothingStartsHalfConfigured) {
     ros::master::V_TopicInfo topics;
     ros::master::getTopics(topics);
     int count = 0;
-    for (const auto& topic : topics) count += topic.name.rfind("/bad_params/", 0) == 0;
+    for (const auto& topic : topics)
+      count += topic.name.rfind("/bad_params/", 0) == 0;
     return count;
   };
   EXPECT_EQ(advertised(), 0);
