@@ -9,10 +9,13 @@
 namespace lidar_deskew::test {
 namespace {
 
-bool expectPassThrough() {
+bool flag(const std::string& name) {
   bool value = false;
-  ros::NodeHandle("~").getParam("expect_pass_through", value);
+  ros::NodeHandle("~").getParam(name, value);
   return value;
+}
+bool expectPassThrough() {
+  return flag("expect_pass_through");
 }
 
 constexpr double kScanPeriod = 1.0 / 40.0;
@@ -77,7 +80,7 @@ TEST(LiveDeskew, TfGapDropsOrPassesThrough) {
   ASSERT_TRUE(rig.waitFor([&] { return rig.scan_publisher.getNumSubscribers() == 1; }, 5.0));
   rig.publishMount();
   const double start = 1.0;
-  rig.publishTfUntil(start + 0.01);  // tf stops inside the sweep
+  rig.publishTfUntil(start - 0.01);  // tf stops before the sweep (too early to extrapolate from)
   const sim::SimulatedScan input = rig.publishScan(start);
   sensor_msgs::LaserScan::ConstPtr scan;
   sensor_msgs::PointCloud2::ConstPtr cloud;
@@ -119,6 +122,31 @@ TEST(LiveDeskew, MalformedScanIsDroppedAndTheNextServed) {
   rig.publishScan(next);
   EXPECT_TRUE(rig.waitForOutputs(rig.stampOf(next), 5.0, scan, cloud));
   EXPECT_TRUE(rig.waitFor([&] { return rig.diagnosticNumber("dropped: invalid") >= 2; }, 5.0));
+}
+
+// tf ends 10 ms before the sweep's last beam. With max_extrapolation (0.05 s here) the scan is corrected
+// at once with the newest velocity; without, it waits until tf covers it.
+TEST(LiveDeskew, ExtrapolatesOnlyWhenAllowed) {
+  LiveRig rig;
+  rig.subscribeOutputs();
+  ASSERT_TRUE(rig.waitFor([&] { return rig.scan_publisher.getNumSubscribers() == 1; }, 5.0));
+  rig.publishMount();
+  const double start = 3.0;  // sweep [3.0, 3.025): tf up to 3.0 + 0.02 - ends 5 ms short
+  rig.publishTfUntil(start + 0.02);
+  rig.publishScan(start);
+  sensor_msgs::LaserScan::ConstPtr scan;
+  sensor_msgs::PointCloud2::ConstPtr cloud;
+  const bool early = rig.waitForOutputs(rig.stampOf(start), 0.1, scan, cloud);  // tf_timeout is 0.2 s
+  if (flag("expect_extrapolation")) {
+    ASSERT_TRUE(early);
+    // 5 ms of constant-velocity extrapolation on a 6 m/s, 5 rad/s arc: millimetres at most.
+    EXPECT_LT(rms(cloudDistances(rig, *cloud)), 3e-3);
+    EXPECT_TRUE(rig.waitFor([&] { return rig.diagnosticNumber("extrapolated") >= 1; }, 5.0));
+  } else {
+    EXPECT_FALSE(early);
+    rig.publishTfUntil(start + 0.06);
+    EXPECT_TRUE(rig.waitForOutputs(rig.stampOf(start), 5.0, scan, cloud));
+  }
 }
 
 }  // namespace
