@@ -1,5 +1,5 @@
 // Per-scan cost of the ROS-free core (Google Benchmark). Prints Google Benchmark's table, then a
-// summary in ns per point. Run: bench/run_core.sh (pins to one core).
+// summary in ns per point. Run: bench/run.sh core (pins to one core).
 //
 // Scans are simulated on a 6 m/s, 5 rad/s arc with the laser off the rotation centre; poses come as
 // samples at 50 Hz (what odom -> base_link on tf gives), knots every 5 ms (the default).

@@ -1,6 +1,6 @@
 // Per-scan cost with tf lookups included, and accuracy against truth: our knots (default), our exact
 // per-beam lookups, and laser_geometry's fixed-frame transformLaserScanToPointCloud, on the same scans
-// and the same tf2 buffer. Run: bench/run_tf.sh (pins to one core).
+// and the same tf2 buffer. Run: bench/run.sh tf (pins to one core).
 //
 // The simulator drives a 6 m/s, 5 rad/s arc through a 12 x 8 m room, the laser 0.25 m ahead of the
 // base; tf holds odom -> base_link at 50 Hz (the true pose) and the static mount.
@@ -151,22 +151,6 @@ void registerAll() {
   }
 }
 
-struct Accuracy {
-  double rms_mm = 0.0;
-  double max_mm = 0.0;
-};
-
-Accuracy accuracy(const std::vector<double>& distances) {
-  Accuracy result;
-  double sum = 0.0;
-  for (double d : distances) {
-    sum += d * d;
-    result.max_mm = std::max(result.max_mm, 1e3 * d);
-  }
-  result.rms_mm = distances.empty() ? 0.0 : 1e3 * std::sqrt(sum / distances.size());
-  return result;
-}
-
 /// Distance to the true walls of every point of every scan, for each method, and knots vs exact.
 void printAccuracy() {
   std::printf("\nAccuracy against truth (noise off), distance to the true walls [mm], all scans of 1 s:\n");
@@ -202,10 +186,11 @@ void printAccuracy() {
         geometry_d.push_back(world.distanceTo(laser_at_stamp.apply({*x, *y})));
       }
     }
-    const Accuracy ka = accuracy(knots_d), ea = accuracy(exact_d), ga = accuracy(geometry_d);
+    const sim::ErrorStats ka = sim::errorStats(knots_d).scaled(1e3);
+    const sim::ErrorStats ea = sim::errorStats(exact_d).scaled(1e3);
+    const sim::ErrorStats ga = sim::errorStats(geometry_d).scaled(1e3);
     std::printf("%-10s %7zu | %8.3f %8.3f | %8.3f %8.3f | %8.2f %8.2f | %14.5f\n", sensor.c_str(),
-                rec.messages.size(), ka.rms_mm, ka.max_mm, ea.rms_mm, ea.max_mm, ga.rms_mm, ga.max_mm,
-                1e3 * knots_vs_exact);
+                rec.messages.size(), ka.rms, ka.max, ea.rms, ea.max, ga.rms, ga.max, 1e3 * knots_vs_exact);
   }
 }
 

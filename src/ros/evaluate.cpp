@@ -71,21 +71,6 @@ void writeFigureCsv(const std::string& path, const sim::Truth& truth, const core
 
 }  // namespace
 
-ErrorStats errorStats(std::vector<double> distances_m) {
-  ErrorStats stats;
-  stats.count = distances_m.size();
-  if (distances_m.empty())
-    return stats;
-  double sum_squares = 0.0;
-  for (double d : distances_m)
-    sum_squares += d * d;
-  std::sort(distances_m.begin(), distances_m.end());
-  stats.rms = 1e3 * std::sqrt(sum_squares / distances_m.size());
-  stats.p95 = 1e3 * distances_m[static_cast<std::size_t>(std::ceil(0.95 * distances_m.size())) - 1];
-  stats.max = 1e3 * distances_m.back();
-  return stats;
-}
-
 Evaluation evaluateBag(const std::string& bag_path, const std::string& truth_path,
                        const EvaluateOptions& options) {
   const sim::Truth truth = sim::readTruth(truth_path);
@@ -192,11 +177,11 @@ Evaluation evaluateBag(const std::string& bag_path, const std::string& truth_pat
       writeFigureCsv(options.figure_csv, truth, scan, timing, corrected, rebinned, laser_geometry_world);
     }
   }
-  evaluation.raw = errorStats(raw);
-  evaluation.cloud = errorStats(cloud);
-  evaluation.scan = errorStats(rebinned_scan);
-  evaluation.laser_geometry = errorStats(laser_geometry_errors);
-  evaluation.cloud_to_hit = errorStats(to_hit);
+  evaluation.raw = sim::errorStats(raw).scaled(1e3);
+  evaluation.cloud = sim::errorStats(cloud).scaled(1e3);
+  evaluation.scan = sim::errorStats(rebinned_scan).scaled(1e3);
+  evaluation.laser_geometry = sim::errorStats(laser_geometry_errors).scaled(1e3);
+  evaluation.cloud_to_hit = sim::errorStats(to_hit).scaled(1e3);
   evaluation.noise_only_rms = noise_count ? 1e3 * std::sqrt(noise_sum_squares / noise_count) : 0.0;
   return evaluation;
 }

@@ -1,5 +1,6 @@
 #include "lidar_deskew/sim/sim.h"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 
@@ -11,6 +12,21 @@ double cross(const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
 }
 
 }  // namespace
+
+ErrorStats errorStats(std::vector<double> errors) {
+  ErrorStats stats;
+  stats.count = errors.size();
+  if (errors.empty())
+    return stats;
+  double sum_squares = 0.0;
+  for (double error : errors)
+    sum_squares += error * error;
+  std::sort(errors.begin(), errors.end());
+  stats.rms = std::sqrt(sum_squares / static_cast<double>(errors.size()));
+  stats.p95 = errors[static_cast<std::size_t>(std::ceil(0.95 * static_cast<double>(errors.size()))) - 1];
+  stats.max = errors.back();
+  return stats;
+}
 
 Pose2 Pose2::compose(const Pose2& local) const {
   const Eigen::Vector2d position = apply(Eigen::Vector2d(local.x, local.y));

@@ -20,26 +20,6 @@ using namespace lidar_deskew;
 
 constexpr core::TimeNs kEpoch = 1'700'000'000'000'000'000;
 
-struct Stats {
-  double rms_mm = 0.0;
-  double p95_mm = 0.0;
-  double max_mm = 0.0;
-};
-
-Stats statsOf(std::vector<double> errors) {
-  Stats stats;
-  if (errors.empty())
-    return stats;
-  double sum_squares = 0.0;
-  for (double error : errors)
-    sum_squares += error * error;
-  std::sort(errors.begin(), errors.end());
-  stats.rms_mm = 1e3 * std::sqrt(sum_squares / errors.size());
-  stats.p95_mm = 1e3 * errors[static_cast<std::size_t>(0.95 * (errors.size() - 1))];
-  stats.max_mm = 1e3 * errors.back();
-  return stats;
-}
-
 mrpt::poses::CPose3D toMrpt(const sim::Pose2& pose) {
   return mrpt::poses::CPose3D::FromXYZYawPitchRoll(pose.x, pose.y, 0.0, pose.yaw, 0.0, 0.0);
 }
@@ -129,10 +109,12 @@ int main(int argc, char** argv) {
         scan_errors.push_back(
             world.distanceTo(laser.apply({range * std::cos(angle), range * std::sin(angle)})));
       }
-      const Stats raw = statsOf(raw_errors), fixed = statsOf(corrected_errors), scan = statsOf(scan_errors);
+      const sim::ErrorStats raw = sim::errorStats(raw_errors).scaled(1e3);
+      const sim::ErrorStats fixed = sim::errorStats(corrected_errors).scaled(1e3);
+      const sim::ErrorStats scan = sim::errorStats(scan_errors).scaled(1e3);
       std::printf("%-13s %-12s %7zu | %9.2f %9.2f | %9.3f %9.3f | %9.3f %9.3f\n", model.name.c_str(),
-                  motion.name, corrected.points.size(), raw.rms_mm, raw.max_mm, fixed.rms_mm, fixed.max_mm,
-                  scan.rms_mm, scan.max_mm);
+                  motion.name, corrected.points.size(), raw.rms, raw.max, fixed.rms, fixed.max, scan.rms,
+                  scan.max);
     }
   }
   return 0;

@@ -166,10 +166,7 @@ std::vector<double> scanDistances(const LiveRig& rig, const sensor_msgs::LaserSc
 }
 
 double rms(const std::vector<double>& values) {
-  double sum = 0.0;
-  for (double v : values)
-    sum += v * v;
-  return values.empty() ? 0.0 : std::sqrt(sum / values.size());
+  return sim::errorStats(values).rms;
 }
 
 }  // namespace lidar_deskew::test

@@ -36,18 +36,6 @@ std::vector<Eigen::Vector2d> truePointsAtReference(const sim::SimulatedScan& sim
   return truth;
 }
 
-ErrorStats errorStats(const std::vector<double>& errors) {
-  ErrorStats stats;
-  double sum_squares = 0.0;
-  for (double error : errors) {
-    sum_squares += error * error;
-    stats.max = std::max(stats.max, error);
-  }
-  stats.count = errors.size();
-  stats.rms = errors.empty() ? 0.0 : std::sqrt(sum_squares / errors.size());
-  return stats;
-}
-
 std::vector<double> pointErrors(const core::DeskewedScan& corrected,
                                 const std::vector<Eigen::Vector2d>& truth) {
   std::vector<double> errors;

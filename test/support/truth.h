@@ -30,13 +30,8 @@ std::vector<Eigen::Vector2d> truePointsAtReference(const sim::SimulatedScan& sim
                                                    const sim::Trajectory& trajectory, const sim::Pose2& mount,
                                                    core::TimeNs epoch);
 
-/// Error statistics [m].
-struct ErrorStats {
-  double rms = 0.0;
-  double max = 0.0;
-  std::size_t count = 0;
-};
-ErrorStats errorStats(const std::vector<double>& errors);
+using sim::ErrorStats;
+using sim::errorStats;
 
 /// Per point: |corrected - truth| in the x-y plane [m].
 std::vector<double> pointErrors(const core::DeskewedScan& corrected,

@@ -7,17 +7,12 @@
 
 #include "lidar_deskew/core/deskew.h"
 #include "lidar_deskew/core/rebin.h"
+#include "lidar_deskew/sim/sim.h"
 
 namespace lidar_deskew::ros_adapter {
 
-/// Distance statistics [mm].
-struct ErrorStats {
-  double rms = 0.0;
-  double p95 = 0.0;
-  double max = 0.0;
-  std::size_t count = 0;
-};
-ErrorStats errorStats(std::vector<double> distances_m);
+/// Distance statistics; in an Evaluation, in mm.
+using sim::ErrorStats;
 
 struct EvaluateOptions {
   std::string scan_topic = "/scan";

@@ -13,6 +13,18 @@
 
 namespace lidar_deskew::sim {
 
+/// RMS, 95th percentile and maximum of non-negative errors, in the input's unit, and their count.
+struct ErrorStats {
+  double rms = 0.0;
+  double p95 = 0.0;
+  double max = 0.0;
+  std::size_t count = 0;
+
+  /// The same statistics in another unit (e.g. 1e3 for metres -> millimetres).
+  ErrorStats scaled(double factor) const { return {rms * factor, p95 * factor, max * factor, count}; }
+};
+ErrorStats errorStats(std::vector<double> errors);
+
 /// A planar pose: position [m] and heading [rad].
 struct Pose2 {
   double x = 0.0;

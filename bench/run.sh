@@ -1,0 +1,16 @@
+#!/usr/bin/env bash
+# Builds (Release, CMake directly) and runs one benchmark on one core, median of 5 repetitions.
+#   bash bench/run.sh core   # the ROS-free core: correction, re-binning, per-point times
+#   bash bench/run.sh tf     # with tf lookups: ours (knots, exact) vs laser_geometry, then accuracy
+# Extra arguments go to Google Benchmark, e.g. --benchmark_filter=DeskewScan
+set -euo pipefail
+export PATH=/usr/bin:/bin:$PATH
+repo=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
+name=${1:?usage: bench/run.sh core|tf [benchmark arguments]}
+shift
+bash "$repo/scripts/install_deps.sh" >/dev/null
+build="$repo/.build/bench"
+cmake -S "$repo" -B "$build" -DCMAKE_BUILD_TYPE=Release -DCATKIN_ENABLE_TESTING=OFF >/dev/null
+cmake --build "$build" --target "bench_$name" -j"${LIDAR_DESKEW_JOBS:-2}" >/dev/null
+bench=$(find "$build" -type f -name "bench_$name" -perm -u+x | head -n 1)
+taskset -c 0 "$bench" --benchmark_min_time=0.5 --benchmark_repetitions=5 --benchmark_report_aggregates_only=true "$@"
