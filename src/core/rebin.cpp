@@ -17,6 +17,8 @@ inline double cross(double ax, double ay, double bx, double by) {
 
 /// `angle` [rad] (finite, within a few turns) moved into [0, 2pi) without a library call.
 inline double wrapToTurn(double angle) {
+  if (std::abs(angle) > 4.0 * kTwoPi)  // far out (never from a validated scan): one library call
+    angle = std::fmod(angle, kTwoPi);
   while (angle < 0.0)
     angle += kTwoPi;
   while (angle >= kTwoPi)
@@ -73,6 +75,8 @@ void ScanRebinner::rebin(const DeskewedScan& corrected, const AngleGrid& grid, f
   }
   if (!std::isfinite(grid.angle_min))
     throw InvalidInput("angle_min", "must be finite");
+  if (std::abs(increment) > kTwoPi)
+    throw InvalidInput("angle_increment", "must be within +-2 pi rad");
   updateRays(grid);
   best_range_.assign(bin_count, std::numeric_limits<double>::infinity());
   best_intensity_.assign(bin_count, 0.0f);

@@ -8,6 +8,8 @@ namespace lidar_deskew::core {
 namespace {
 
 constexpr double kTwoPi = 2.0 * M_PI;
+constexpr double kMaxAngleMin = 4.0 * M_PI;  // [rad]
+constexpr std::size_t kMaxBeams = 1'000'000;
 
 void requireFinite(float value, const char* field) {
   if (!std::isfinite(value)) {
@@ -52,6 +54,9 @@ std::string toString(Reference value) {
 }
 
 void TimingConfig::validate() const {
+  if (max_sweep_duration > 60.0) {
+    throw InvalidInput("max_sweep_duration", "must be <= 60 s, got " + std::to_string(max_sweep_duration));
+  }
   if (!std::isfinite(scan_period) || scan_period < 0.0) {
     throw InvalidInput("scan_period", "must be >= 0 s (0 = no fallback), got " + std::to_string(scan_period));
   }
@@ -85,6 +90,17 @@ TimeNs BeamTiming::referenceTime(Reference reference) const {
 void validateScan(const PlanarScan& scan) {
   requireFinite(scan.angle_min, "angle_min");
   requireFinite(scan.angle_increment, "angle_increment");
+  if (std::abs(scan.angle_min) > kMaxAngleMin) {
+    throw InvalidInput("angle_min", "must be within +-4 pi rad, got " + std::to_string(scan.angle_min));
+  }
+  if (std::abs(scan.angle_increment) > kTwoPi) {
+    throw InvalidInput("angle_increment",
+                       "must be within +-2 pi rad, got " + std::to_string(scan.angle_increment));
+  }
+  if (scan.ranges.size() > kMaxBeams) {
+    throw InvalidInput(
+        "ranges", "has " + std::to_string(scan.ranges.size()) + " beams, above " + std::to_string(kMaxBeams));
+  }
   requireFinite(scan.time_increment, "time_increment");
   requireFinite(scan.scan_time, "scan_time");
   requireFinite(scan.range_min, "range_min");

@@ -1,6 +1,5 @@
 #include "lidar_deskew/ros/deskew_node.h"
 
-#include <pcl_conversions/pcl_conversions.h>
 #include <pcl_ros/point_cloud.h>
 #include <tf2/exceptions.h>
 
@@ -14,16 +13,10 @@ namespace {
 std::atomic<const void*> last_published_cloud{nullptr};
 
 /// A time jump backwards larger than this (bag loop, /clock reset) clears the tf cache and the queue.
-const ros::Duration kTimeJump(1.0);
+const core::TimeNs kTimeJumpNs = 1'000'000'000;
 
 /// Scans over which the latency percentile is taken.
 constexpr std::size_t kLatencies = 1000;
-
-/// The base stands still: correcting with it is the plain polar projection (pass_through clouds).
-class StandingStill final : public core::MotionSource {
- public:
-  mrpt::poses::CPose3D basePose(core::TimeNs /*time*/) const override { return {}; }
-};
 
 /// tf, and beyond its newest sample up to `limit`, the newest velocity (from the last two samples).
 class ExtrapolatingMotion final : public core::MotionSource {
@@ -47,28 +40,6 @@ class ExtrapolatingMotion final : public core::MotionSource {
   core::TimeNs newest_, previous_, limit_;
 };
 
-/// The corrected points as the published PCL cloud.
-boost::shared_ptr<DeskewedCloud> toCloud(const core::DeskewedScan& corrected,
-                                         const std_msgs::Header& header) {
-  auto cloud = boost::make_shared<DeskewedCloud>();
-  pcl_conversions::toPCL(header, cloud->header);
-  cloud->points.reserve(corrected.points.size());
-  for (const core::DeskewedPoint& point : corrected.points) {
-    PointXYZITI out;
-    out.x = static_cast<float>(point.position.x());
-    out.y = static_cast<float>(point.position.y());
-    out.z = static_cast<float>(point.position.z());
-    out.intensity = point.intensity;
-    out.t = static_cast<float>(point.time_offset);
-    out.index = point.beam_index;
-    cloud->points.push_back(out);
-  }
-  cloud->width = static_cast<std::uint32_t>(cloud->points.size());
-  cloud->height = 1;
-  cloud->is_dense = true;
-  return cloud;
-}
-
 }  // namespace
 
 LaserScanDeskewNode::LaserScanDeskewNode(ros::NodeHandle nh, ros::NodeHandle private_nh, std::string name)
@@ -78,9 +49,9 @@ LaserScanDeskewNode::LaserScanDeskewNode(ros::NodeHandle nh, ros::NodeHandle pri
       params_(DeskewParams::load(private_nh)),
       buffer_(ros::Duration(10.0)),
       motion_(buffer_, params_.fixed_frame, params_.base_frame),
-      deskewer_(params_.deskew),
-      rebinner_(params_.rebin) {
+      processor_(params_) {
   last_diagnostics_ = ros::WallTime::now();
+  private_nh_.setParam("diagnostic_period", params_.diagnostics_period);  // read by the Updater
   diagnostics_ = std::make_unique<diagnostic_updater::Updater>(nh_, private_nh_, name_);
   diagnostics_->setHardwareID("none");
   diagnostics_->add(name_ + ": deskew", this, &LaserScanDeskewNode::produceDiagnostics);
@@ -113,6 +84,13 @@ LaserScanDeskewNode::LaserScanDeskewNode(ros::NodeHandle nh, ros::NodeHandle pri
 }
 
 LaserScanDeskewNode::~LaserScanDeskewNode() {
+  {
+    // No connect callback may touch a publisher or subscribe while members go away.
+    std::lock_guard<std::mutex> lock(connect_mutex_);
+    shutting_down_ = true;
+    scan_publisher_.shutdown();
+    cloud_publisher_.shutdown();
+  }
   timer_.stop();
   scan_subscriber_.shutdown();
   tf_subscriber_.shutdown();
@@ -144,6 +122,8 @@ LaserScanDeskewNode::Counters LaserScanDeskewNode::counters() const {
 
 void LaserScanDeskewNode::connectCallback() {
   std::lock_guard<std::mutex> lock(connect_mutex_);
+  if (shutting_down_)
+    return;
   const bool wanted = scan_publisher_.getNumSubscribers() + cloud_publisher_.getNumSubscribers() > 0;
   if (wanted && !scan_subscriber_) {
     scan_subscriber_ = nh_.subscribe<sensor_msgs::LaserScan>("scan", 10, &LaserScanDeskewNode::scanCallback,
@@ -158,29 +138,26 @@ void LaserScanDeskewNode::scanCallback(const sensor_msgs::LaserScan::ConstPtr& m
   std::lock_guard<std::mutex> lock(mutex_);
   ++counters_.received;
   Pending pending;
-  pending.message = message;
   pending.arrival = arrival;
   try {
-    if (message->header.frame_id.empty())
-      throw core::InvalidInput("header.frame_id", "is empty");
-    pending.scan = fromMsg(*message);
-    core::validateScan(pending.scan);
-    pending.timing = core::resolveTiming(pending.scan, params_.timing);
+    pending.prepared = processor_.prepare(message);
   } catch (const core::InvalidInput& error) {
     ++counters_.dropped_invalid;
     ROS_ERROR_THROTTLE(1.0, "%s: dropping malformed scan (frame '%s', stamp %.6f): %s", name_.c_str(),
                        message->header.frame_id.c_str(), message->header.stamp.toSec(), error.what());
     return;
+  } catch (const std::exception& error) {  // e.g. out of memory for an absurd scan
+    ++counters_.dropped_invalid;
+    ROS_ERROR_THROTTLE(1.0, "%s: dropping scan: %s", name_.c_str(), error.what());
+    return;
   }
-  if (pending.timing.source != core::TimingSource::kTimeIncrement && counters_.time_fallbacks++ == 0) {
-    ROS_WARN(
-        "%s: scans have time_increment = 0; beam times come from %s (counted in diagnostics)", name_.c_str(),
-        pending.timing.source == core::TimingSource::kScanTime ? "scan_time" : "the scan_period parameter");
+  if (pending.prepared.timing.source != core::TimingSource::kTimeIncrement &&
+      counters_.time_fallbacks++ == 0) {
+    ROS_WARN("%s: scans have time_increment = 0; beam times come from %s (counted in diagnostics)",
+             name_.c_str(),
+             pending.prepared.timing.source == core::TimingSource::kScanTime ? "scan_time"
+                                                                             : "the scan_period parameter");
   }
-  if (!newest_scan_time_.isZero() && message->header.stamp + kTimeJump < newest_scan_time_) {
-    resetForTimeJump("scan stamps");
-  }
-  newest_scan_time_ = message->header.stamp;
   pending_.push_back(std::move(pending));
   while (static_cast<int>(pending_.size()) > params_.queue_size) {
     ++counters_.dropped_queue;
@@ -188,84 +165,117 @@ void LaserScanDeskewNode::scanCallback(const sensor_msgs::LaserScan::ConstPtr& m
                       params_.queue_size);
     pending_.pop_front();
   }
-  processReady(arrival);
+  try {
+    processReady(arrival);
+  } catch (const std::exception& error) {  // never let an exception reach the manager
+    ROS_ERROR_THROTTLE(1.0, "%s: error processing scans: %s", name_.c_str(), error.what());
+  }
 }
 
 void LaserScanDeskewNode::tfCallback(const tf2_msgs::TFMessage::ConstPtr& message, bool is_static) {
   const ros::WallTime arrival = ros::WallTime::now();
   std::lock_guard<std::mutex> lock(mutex_);
-  for (const geometry_msgs::TransformStamped& transform : message->transforms) {
-    if (!is_static) {
-      if (!newest_tf_time_.isZero() && transform.header.stamp + kTimeJump < newest_tf_time_) {
-        resetForTimeJump("tf stamps");
+  try {
+    for (const geometry_msgs::TransformStamped& transform : message->transforms) {
+      if (!is_static && transform.child_frame_id == params_.base_frame) {
+        // Only the base's own motion decides that time went backwards (other publishers may lag).
+        const core::TimeNs stamp = toNs(transform.header.stamp);
+        if (newest_base_stamp_ != 0 && stamp + kTimeJumpNs < newest_base_stamp_)
+          resetForTimeJump();
+        newest_base_stamp_ = std::max(newest_base_stamp_, stamp);
       }
-      if (transform.header.stamp > newest_tf_time_)
-        newest_tf_time_ = transform.header.stamp;
-      if (transform.child_frame_id == params_.base_frame ||
-          transform.header.frame_id == params_.fixed_frame) {
-        motion_.addSampleTime(toNs(transform.header.stamp));
+      if (!is_static)
+        motion_.observe(transform);
+      try {
+        buffer_.setTransform(transform, "tf", is_static);
+      } catch (const tf2::TransformException& error) {
+        ROS_WARN_THROTTLE(1.0, "%s: ignoring a transform: %s", name_.c_str(), error.what());
       }
     }
-    try {
-      buffer_.setTransform(transform, "tf", is_static);
-    } catch (const tf2::TransformException& error) {
-      ROS_WARN_THROTTLE(1.0, "%s: ignoring a transform: %s", name_.c_str(), error.what());
-    }
+    processReady(arrival);
+  } catch (const std::exception& error) {  // never let an exception reach the manager
+    ROS_ERROR_THROTTLE(1.0, "%s: error handling tf: %s", name_.c_str(), error.what());
   }
-  processReady(arrival);
 }
 
 void LaserScanDeskewNode::timerCallback(const ros::WallTimerEvent& /*event*/) {
   {
     std::lock_guard<std::mutex> lock(mutex_);
     const ros::WallTime now = ros::WallTime::now();
-    processReady(now);
-    while (!pending_.empty() && (now - pending_.front().arrival).toSec() > params_.tf_timeout) {
-      const Pending expired = std::move(pending_.front());
-      pending_.pop_front();
-      failOnTf(expired, "tf did not cover the sweep within tf_timeout");
+    try {
+      processReady(now);
+      while (!pending_.empty() && (now - pending_.front().arrival).toSec() > params_.tf_timeout) {
+        const Pending expired = std::move(pending_.front());
+        pending_.pop_front();
+        const std::string& frame = expired.prepared.message->header.frame_id;
+        if (!mountKnown(frame)) {
+          ++counters_.dropped_mount;
+          ROS_ERROR_THROTTLE(1.0,
+                             "%s: dropping scan: no transform %s -> %s (the laser mount) within tf_timeout",
+                             name_.c_str(), params_.base_frame.c_str(), frame.c_str());
+          continue;
+        }
+        failOnTf(expired, "tf did not cover the sweep within tf_timeout");
+      }
+      processReady(now);                     // scans behind an expired one may be ready
+    } catch (const std::exception& error) {  // never let an exception reach the manager
+      ROS_ERROR_THROTTLE(1.0, "%s: error processing scans: %s", name_.c_str(), error.what());
     }
   }
   diagnostics_->update();
 }
 
-void LaserScanDeskewNode::resetForTimeJump(const std::string& what) {
+void LaserScanDeskewNode::resetForTimeJump() {
   ++counters_.time_jumps;
-  ROS_WARN("%s: time went backwards (%s): clearing the tf cache and %zu waiting scans", name_.c_str(),
-           what.c_str(), pending_.size());
+  ROS_WARN("%s: time went backwards (%s -> %s motion): clearing the tf cache and %zu waiting scans",
+           name_.c_str(), params_.fixed_frame.c_str(), params_.base_frame.c_str(), pending_.size());
   buffer_.clear();
   motion_.clearSampleTimes();
   pending_.clear();
-  newest_tf_time_ = ros::Time();
-  newest_scan_time_ = ros::Time();
+  newest_base_stamp_ = 0;
 }
 
 bool LaserScanDeskewNode::sweepCovered(const Pending& pending, bool& extrapolate) const {
   extrapolate = false;
-  const ros::Time first = toRosTime(pending.timing.earliestBeamTime());
-  const ros::Time last = toRosTime(pending.timing.latestBeamTime());
+  const ros::Time first = toRosTime(pending.prepared.timing.earliestBeamTime());
+  const ros::Time last = toRosTime(pending.prepared.timing.latestBeamTime());
   if (buffer_.canTransform(params_.fixed_frame, params_.base_frame, last) &&
       buffer_.canTransform(params_.fixed_frame, params_.base_frame, first)) {
     return true;
   }
-  if (params_.max_extrapolation <= 0.0 || newest_tf_time_.isZero())
+  if (params_.max_extrapolation <= 0.0 ||
+      !buffer_.canTransform(params_.fixed_frame, params_.base_frame, first))
     return false;
-  // tf ends inside the sweep, less than max_extrapolation before its last beam.
-  extrapolate = newest_tf_time_ >= first &&
-                newest_tf_time_ + ros::Duration(params_.max_extrapolation) >= last &&
-                buffer_.canTransform(params_.fixed_frame, params_.base_frame, first);
+  // tf of the chain ends inside the sweep, less than max_extrapolation before its last beam.
+  const core::TimeNs newest = newestChainTime();
+  extrapolate = newest >= toNs(first) && newest + core::secondsToNs(params_.max_extrapolation) >= toNs(last);
   return extrapolate;
+}
+
+core::TimeNs LaserScanDeskewNode::newestChainTime() const {
+  try {
+    return toNs(buffer_.lookupTransform(params_.fixed_frame, params_.base_frame, ros::Time(0)).header.stamp);
+  } catch (const tf2::TransformException&) {
+    return 0;
+  }
 }
 
 void LaserScanDeskewNode::processReady(ros::WallTime trigger) {
   while (!pending_.empty()) {
     bool extrapolate = false;
-    if (!sweepCovered(pending_.front(), extrapolate))
-      return;  // tf only grows: later scans wait too
+    // The mount may arrive after the motion (other connection): wait for both. tf only grows, so
+    // later scans wait too.
+    if (!mountKnown(pending_.front().prepared.message->header.frame_id) ||
+        !sweepCovered(pending_.front(), extrapolate))
+      return;
     const Pending ready = std::move(pending_.front());
     pending_.pop_front();
     correctAndPublish(ready, extrapolate, trigger);
   }
+}
+
+bool LaserScanDeskewNode::mountKnown(const std::string& frame) const {
+  return mounts_.count(frame) > 0 || buffer_.canTransform(params_.base_frame, frame, ros::Time(0));
 }
 
 bool LaserScanDeskewNode::lookupMount(const std::string& frame, mrpt::poses::CPose3D& mount) {
@@ -292,54 +302,32 @@ void LaserScanDeskewNode::correctAndPublish(const Pending& pending, bool extrapo
   const ros::WallTime start = ros::WallTime::now();
   const double tf_wait = std::max(0.0, (trigger - pending.arrival).toSec());
   mrpt::poses::CPose3D mount;
-  if (!lookupMount(pending.message->header.frame_id, mount)) {
+  if (!lookupMount(pending.prepared.message->header.frame_id, mount)) {
     ++counters_.dropped_mount;
     return;
   }
-  core::DeskewedScan corrected;
+  DeskewedOutputs outputs;
   try {
     if (extrapolate) {
       std::vector<core::TimeNs> samples;
-      const core::TimeNs newest = toNs(newest_tf_time_);
+      const core::TimeNs newest = newestChainTime();
       motion_.appendSampleTimes(newest - 1'000'000'000, newest, samples);
       const core::TimeNs previous = samples.empty() ? newest : samples.back();
       const ExtrapolatingMotion motion(motion_, newest, previous,
                                        newest + core::secondsToNs(params_.max_extrapolation));
-      deskewer_.deskew(pending.scan, pending.timing, mount, motion, corrected);
+      outputs = processor_.correct(pending.prepared, mount, motion);
       ++counters_.extrapolated;
     } else {
-      deskewer_.deskew(pending.scan, pending.timing, mount, motion_, corrected);
+      outputs = processor_.correct(pending.prepared, mount, motion_);
     }
   } catch (const core::MotionUnavailable& error) {
     failOnTf(pending, error.what());
     return;
   }
-  core::RebinnedScan rebinned;
-  rebinner_.rebin(corrected,
-                  {pending.scan.angle_min, pending.scan.angle_increment, pending.scan.ranges.size()},
-                  core::noReturnValue(pending.scan), rebinned);
-
-  const sensor_msgs::LaserScan& input = *pending.message;
-  std_msgs::Header header = input.header;
-  header.stamp = toRosTime(corrected.reference_time);
-
-  auto scan = boost::make_shared<sensor_msgs::LaserScan>();
-  scan->header = header;
-  scan->angle_min = input.angle_min;
-  scan->angle_max = input.angle_max;
-  scan->angle_increment = input.angle_increment;
-  scan->time_increment = 0.0f;  // every beam now refers to the reference time
-  scan->scan_time = input.scan_time;
-  scan->range_min = input.range_min;
-  scan->range_max = input.range_max;
-  scan->ranges = std::move(rebinned.ranges);
-  scan->intensities = std::move(rebinned.intensities);
-  const boost::shared_ptr<DeskewedCloud> cloud = toCloud(corrected, header);
-
   // Shared pointers, never touched after publishing: same-type subscribers in the manager get them as is.
-  scan_publisher_.publish(scan);
-  last_published_cloud.store(cloud.get());
-  cloud_publisher_.publish(cloud);
+  scan_publisher_.publish(outputs.scan);
+  last_published_cloud.store(outputs.cloud.get());
+  cloud_publisher_.publish(outputs.cloud);
 
   ++counters_.published;
   const ros::WallTime done = ros::WallTime::now();
@@ -357,20 +345,18 @@ void LaserScanDeskewNode::correctAndPublish(const Pending& pending, bool extrapo
 }
 
 void LaserScanDeskewNode::failOnTf(const Pending& pending, const std::string& reason) {
+  const double stamp = pending.prepared.message->header.stamp.toSec();
   if (params_.on_tf_failure == OnTfFailure::kDrop) {
     ++counters_.dropped_tf;
-    ROS_WARN_THROTTLE(1.0, "%s: dropping scan at %.6f: %s", name_.c_str(),
-                      pending.message->header.stamp.toSec(), reason.c_str());
+    ROS_WARN_THROTTLE(1.0, "%s: dropping scan at %.6f: %s", name_.c_str(), stamp, reason.c_str());
     return;
   }
   ++counters_.passed_through;
-  ROS_WARN_THROTTLE(1.0, "%s: passing scan at %.6f through uncorrected: %s", name_.c_str(),
-                    pending.message->header.stamp.toSec(), reason.c_str());
-  scan_publisher_.publish(pending.message);
-  // The uncorrected cloud: the plain polar projection, as if the base stood still.
-  core::DeskewedScan projected;
-  deskewer_.deskew(pending.scan, pending.timing, mrpt::poses::CPose3D(), StandingStill(), projected);
-  cloud_publisher_.publish(toCloud(projected, pending.message->header));
+  ROS_WARN_THROTTLE(1.0, "%s: passing scan at %.6f through uncorrected: %s", name_.c_str(), stamp,
+                    reason.c_str());
+  const DeskewedOutputs outputs = processor_.passThrough(pending.prepared);
+  scan_publisher_.publish(outputs.scan);
+  cloud_publisher_.publish(outputs.cloud);
 }
 
 void LaserScanDeskewNode::produceDiagnostics(diagnostic_updater::DiagnosticStatusWrapper& status) {

@@ -1,32 +1,13 @@
 #include "lidar_deskew/ros/params.h"
 
+#include <climits>
 #include <cmath>
+#include <cstdint>
+#include <cstdlib>
+#include <iterator>
 
 namespace lidar_deskew::ros_adapter {
 namespace {
-
-/// Reads `name` when present; a value of the wrong type is an error naming the parameter.
-template <typename T>
-void read(const ros::NodeHandle& nh, const std::string& name, T& value) {
-  if (!nh.hasParam(name))
-    return;
-  if (!nh.getParam(name, value)) {
-    throw core::InvalidInput(name, "has the wrong type (see README for its type and unit)");
-  }
-}
-
-void read(const ros::NodeHandle& nh, const std::string& name, double& value) {
-  if (!nh.hasParam(name))
-    return;
-  int integer = 0;
-  if (nh.getParam(name, value))
-    return;
-  if (nh.getParam(name, integer)) {  // YAML "1" is an int; accept it for a double parameter
-    value = integer;
-    return;
-  }
-  throw core::InvalidInput(name, "must be a number");
-}
 
 void requireNonNegative(double value, const char* name) {
   if (!std::isfinite(value) || value < 0.0) {
@@ -34,43 +15,131 @@ void requireNonNegative(double value, const char* name) {
   }
 }
 
+const char* const kNames[] = {"fixed_frame",        "base_frame",       "stamp_at",          "scan_period",
+                              "max_sweep_duration", "reference",        "knot_interval",     "exact",
+                              "rebin_min_gap",      "rebin_gap_factor", "tf_timeout",        "on_tf_failure",
+                              "max_extrapolation",  "queue_size",       "diagnostics_period"};
+
+template <typename T>
+bool getFromNodeHandle(const ros::NodeHandle& nh, const std::string& name, T& value, const char* expected) {
+  if (!nh.hasParam(name))
+    return false;
+  if (!nh.getParam(name, value))
+    throw core::InvalidInput(name, std::string("must be ") + expected);
+  return true;
+}
+
 }  // namespace
+
+bool NodeHandleParams::get(const std::string& name, std::string& value) const {
+  return getFromNodeHandle(nh_, name, value, "a string");
+}
+
+bool NodeHandleParams::get(const std::string& name, double& value) const {
+  if (!nh_.hasParam(name))
+    return false;
+  int integer = 0;
+  if (nh_.getParam(name, value))
+    return true;
+  if (nh_.getParam(name, integer)) {  // YAML "1" is an int; accept it for a double parameter
+    value = integer;
+    return true;
+  }
+  throw core::InvalidInput(name, "must be a number");
+}
+
+bool NodeHandleParams::get(const std::string& name, int& value) const {
+  return getFromNodeHandle(nh_, name, value, "an integer");
+}
+
+bool NodeHandleParams::get(const std::string& name, bool& value) const {
+  return getFromNodeHandle(nh_, name, value, "true or false");
+}
+
+bool TextParams::get(const std::string& name, std::string& value) const {
+  const auto it = values_.find(name);
+  if (it == values_.end())
+    return false;
+  value = it->second;
+  return true;
+}
+
+bool TextParams::get(const std::string& name, double& value) const {
+  std::string text;
+  if (!get(name, text))
+    return false;
+  char* end = nullptr;
+  value = std::strtod(text.c_str(), &end);
+  if (text.empty() || *end != '\0')
+    throw core::InvalidInput(name, "must be a number, got '" + text + "'");
+  return true;
+}
+
+bool TextParams::get(const std::string& name, int& value) const {
+  std::string text;
+  if (!get(name, text))
+    return false;
+  char* end = nullptr;
+  const long number = std::strtol(text.c_str(), &end, 10);
+  if (text.empty() || *end != '\0' || number < INT32_MIN || number > INT32_MAX)
+    throw core::InvalidInput(name, "must be an integer, got '" + text + "'");
+  value = static_cast<int>(number);
+  return true;
+}
+
+bool TextParams::get(const std::string& name, bool& value) const {
+  std::string text;
+  if (!get(name, text))
+    return false;
+  if (text == "true" || text == "1") {
+    value = true;
+  } else if (text == "false" || text == "0") {
+    value = false;
+  } else {
+    throw core::InvalidInput(name, "must be true or false, got '" + text + "'");
+  }
+  return true;
+}
+
+const std::vector<std::string>& DeskewParams::names() {
+  static const std::vector<std::string> names(std::begin(kNames), std::end(kNames));
+  return names;
+}
 
 std::string toString(OnTfFailure value) {
   return value == OnTfFailure::kDrop ? "drop" : "pass_through";
 }
 
-DeskewParams DeskewParams::load(const ros::NodeHandle& private_nh) {
+DeskewParams DeskewParams::load(const ParamSource& source) {
   DeskewParams params;
-  read(private_nh, "fixed_frame", params.fixed_frame);
-  read(private_nh, "base_frame", params.base_frame);
-  std::string text = toString(params.timing.stamp_at);
-  read(private_nh, "stamp_at", text);
-  params.timing.stamp_at = core::parseStampAt(text);
-  read(private_nh, "scan_period", params.timing.scan_period);
-  read(private_nh, "max_sweep_duration", params.timing.max_sweep_duration);
-  text = core::toString(params.deskew.reference);
-  read(private_nh, "reference", text);
-  params.deskew.reference = core::parseReference(text);
-  read(private_nh, "knot_interval", params.deskew.knot_interval);
-  read(private_nh, "exact", params.exact);
+  source.get("fixed_frame", params.fixed_frame);
+  source.get("base_frame", params.base_frame);
+  std::string text;
+  if (source.get("stamp_at", text))
+    params.timing.stamp_at = core::parseStampAt(text);
+  source.get("scan_period", params.timing.scan_period);
+  source.get("max_sweep_duration", params.timing.max_sweep_duration);
+  if (source.get("reference", text))
+    params.deskew.reference = core::parseReference(text);
+  source.get("knot_interval", params.deskew.knot_interval);
+  source.get("exact", params.exact);
   if (params.exact)
     params.deskew.knot_interval = 0.0;
-  read(private_nh, "rebin_min_gap", params.rebin.min_gap);
-  read(private_nh, "rebin_gap_factor", params.rebin.gap_factor);
-  read(private_nh, "tf_timeout", params.tf_timeout);
-  text = toString(params.on_tf_failure);
-  read(private_nh, "on_tf_failure", text);
-  if (text == "drop") {
-    params.on_tf_failure = OnTfFailure::kDrop;
-  } else if (text == "pass_through") {
-    params.on_tf_failure = OnTfFailure::kPassThrough;
-  } else {
-    throw core::InvalidInput("on_tf_failure", "must be 'drop' or 'pass_through', got '" + text + "'");
+  source.get("rebin_min_gap", params.rebin.min_gap);
+  source.get("rebin_gap_factor", params.rebin.gap_factor);
+  source.get("tf_timeout", params.tf_timeout);
+  if (source.get("on_tf_failure", text)) {
+    if (text == "drop") {
+      params.on_tf_failure = OnTfFailure::kDrop;
+    } else if (text == "pass_through") {
+      params.on_tf_failure = OnTfFailure::kPassThrough;
+    } else {
+      throw core::InvalidInput("on_tf_failure", "must be 'drop' or 'pass_through', got '" + text + "'");
+    }
   }
-  read(private_nh, "max_extrapolation", params.max_extrapolation);
-  read(private_nh, "queue_size", params.queue_size);
-  read(private_nh, "diagnostics_period", params.diagnostics_period);
+  source.get("max_extrapolation", params.max_extrapolation);
+  source.get("queue_size", params.queue_size);
+  source.get("diagnostics_period", params.diagnostics_period);
   params.validate();
   return params;
 }

@@ -9,6 +9,9 @@
 namespace lidar_deskew::ros_adapter {
 
 mrpt::poses::CPose3D TfMotionSource::basePose(core::TimeNs time) const {
+  if (time < 0 || time >= (static_cast<core::TimeNs>(1) << 32) * 1'000'000'000) {
+    throw core::MotionUnavailable(time, "time outside the range of ROS time");
+  }
   try {
     return toPose(buffer_.lookupTransform(fixed_frame_, base_frame_, toRosTime(time)).transform);
   } catch (const tf2::TransformException& error) {

@@ -159,6 +159,18 @@ TEST(Degenerate, MismatchedFieldsAreNamed) {
   EXPECT_EQ(invalidField([&] { rebinner.rebin(out, {0.0f, 0.0f, 5}, 0.0f, rebinned); }), "angle_increment");
 }
 
+TEST(Degenerate, AbsurdGridAnglesEndPromptly) {
+  // The re-binner is also public API: a grid far from +-pi must not make angle wrapping loop.
+  DeskewedScan points;
+  points.points.push_back({Eigen::Vector3d(2.0, 0.0, 0.0), 0.0, 0.0f, 0});
+  points.points.push_back({Eigen::Vector3d(2.0, 0.1, 0.0), 0.0, 0.0f, 1});
+  ScanRebinner rebinner;
+  RebinnedScan out;
+  rebinner.rebin(points, {1e30f, 0.05f, 3}, 0.0f, out);
+  EXPECT_EQ(out.ranges.size(), 3u);
+  EXPECT_EQ(invalidField([&] { rebinner.rebin(points, {0.0f, 100.0f, 3}, 0.0f, out); }), "angle_increment");
+}
+
 TEST(Degenerate, PointsThatAreAllNonFiniteGiveAnEmptyResult) {
   const PoseSamples no_motion;
   ScanDeskewer deskewer;

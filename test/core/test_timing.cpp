@@ -127,6 +127,16 @@ TEST(Timing, ValidateNamesTheBadField) {
   scan.intensities.clear();
   scan.range_max = NAN;
   EXPECT_EQ(fieldOf(scan), "range_max");
+  scan.range_max = 30.0f;
+  scan.angle_min = 1e30f;  // finite but absurd: would make angle wrapping loop for ever
+  EXPECT_EQ(fieldOf(scan), "angle_min");
+  scan.angle_min = -13.0f;
+  EXPECT_EQ(fieldOf(scan), "angle_min");
+  scan.angle_min = -3.0f;
+  scan.angle_increment = 7.0f;
+  EXPECT_EQ(fieldOf(scan), "angle_increment");
+  scan.angle_increment = 0.01f;
+  EXPECT_EQ(fieldOf(scan), "");
 }
 
 TEST(Timing, ParseNamesAndConfigValidation) {
@@ -136,6 +146,9 @@ TEST(Timing, ParseNamesAndConfigValidation) {
   EXPECT_THROW(parseStampAt(""), InvalidInput);
   TimingConfig config;
   config.scan_period = -1.0;
+  EXPECT_THROW(config.validate(), InvalidInput);
+  config.scan_period = 0.0;
+  config.max_sweep_duration = 1e12;  // would overflow nanoseconds
   EXPECT_THROW(config.validate(), InvalidInput);
 }
 

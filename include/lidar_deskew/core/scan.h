@@ -46,10 +46,11 @@ struct TimingConfig {
   /// [s] one sensor revolution, used only when both time_increment and scan_time are 0.
   /// 0 = no fallback: such scans are rejected.
   double scan_period = 0.0;
-  /// [s] sweeps longer than this (first to last beam) are rejected as absurd.
+  /// [s] sweeps longer than this (first to last beam) are rejected as absurd; at most 60 s.
   double max_sweep_duration = 1.0;
 
-  /// Throws InvalidInput naming the bad field (scan_period < 0 or not finite, max_sweep_duration <= 0).
+  /// Throws InvalidInput naming the bad field (scan_period < 0 or not finite, max_sweep_duration not
+  /// in (0, 60] s).
   void validate() const;
 };
 
@@ -80,8 +81,9 @@ struct BeamTiming {
 
 /// Checks a scan's fields; throws InvalidInput naming the first bad one. Accepts an empty scan.
 /// Rejected: non-finite angle_min / angle_increment / time_increment / scan_time / range_min,
-/// NaN range_max, angle_increment = 0 with more than one beam, negative scan_time or range_min,
-/// intensities neither empty nor one per range.
+/// |angle_min| > 4 pi, |angle_increment| > 2 pi, more than 1,000,000 beams, NaN range_max,
+/// angle_increment = 0 with more than one beam, negative scan_time or range_min, intensities neither
+/// empty nor one per range.
 void validateScan(const PlanarScan& scan);
 
 /// Resolves the per-beam times of a validated scan (DESIGN §2). With time_increment = 0, a rotating

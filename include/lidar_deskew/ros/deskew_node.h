@@ -20,11 +20,10 @@
 #include "lidar_deskew/core/rebin.h"
 #include "lidar_deskew/ros/params.h"
 #include "lidar_deskew/ros/point_types.h"
+#include "lidar_deskew/ros/scan_processor.h"
 #include "lidar_deskew/ros/tf_motion.h"
 
 namespace lidar_deskew::ros_adapter {
-
-using DeskewedCloud = pcl::PointCloud<PointXYZITI>;
 
 /// Subscribes to `scan` (remappable) while anyone subscribes to an output; publishes `scan_deskewed`
 /// (sensor_msgs/LaserScan on the input's grid) and `scan_deskewed_points` (PCL cloud of PointXYZITI),
@@ -72,9 +71,7 @@ class LaserScanDeskewNode {
 
  private:
   struct Pending {
-    sensor_msgs::LaserScan::ConstPtr message;
-    core::PlanarScan scan;
-    core::BeamTiming timing;
+    PreparedScan prepared;
     ros::WallTime arrival;
   };
 
@@ -88,8 +85,10 @@ class LaserScanDeskewNode {
   bool sweepCovered(const Pending& pending, bool& extrapolate) const;
   void correctAndPublish(const Pending& pending, bool extrapolate, ros::WallTime trigger);
   void failOnTf(const Pending& pending, const std::string& reason);
+  bool mountKnown(const std::string& frame) const;
   bool lookupMount(const std::string& frame, mrpt::poses::CPose3D& mount);
-  void resetForTimeJump(const std::string& what);
+  void resetForTimeJump();
+  core::TimeNs newestChainTime() const;
   void produceDiagnostics(diagnostic_updater::DiagnosticStatusWrapper& status);
   double latencyP99Locked() const;
 
@@ -100,14 +99,13 @@ class LaserScanDeskewNode {
 
   mutable std::mutex mutex_;
   std::mutex connect_mutex_;
+  bool shutting_down_ = false;  // guarded by connect_mutex_
   tf2::BufferCore buffer_;
   TfMotionSource motion_;
-  core::ScanDeskewer deskewer_;
-  core::ScanRebinner rebinner_;
+  ScanProcessor processor_;
   std::deque<Pending> pending_;
   std::map<std::string, mrpt::poses::CPose3D> mounts_;
-  ros::Time newest_tf_time_;
-  ros::Time newest_scan_time_;
+  core::TimeNs newest_base_stamp_ = 0;  // [ns] newest dynamic transform to base_frame
   Counters counters_;
   std::vector<double> latencies_;  // [s] ring of the last kLatencies
   std::size_t next_latency_ = 0;

@@ -3,13 +3,53 @@
 
 #include <ros/node_handle.h>
 
+#include <map>
 #include <string>
+#include <vector>
 
 #include "lidar_deskew/core/deskew.h"
 #include "lidar_deskew/core/rebin.h"
 #include "lidar_deskew/core/scan.h"
 
 namespace lidar_deskew::ros_adapter {
+
+/// Where parameter values come from: the ROS parameter server (the node) or command-line options
+/// (deskew_bag). Each getter returns false when the parameter is absent and throws core::InvalidInput
+/// naming it when present with a value of the wrong type.
+class ParamSource {
+ public:
+  virtual ~ParamSource() = default;
+  virtual bool get(const std::string& name, std::string& value) const = 0;
+  virtual bool get(const std::string& name, double& value) const = 0;
+  virtual bool get(const std::string& name, int& value) const = 0;
+  virtual bool get(const std::string& name, bool& value) const = 0;
+};
+
+/// Parameters from a node handle's namespace.
+class NodeHandleParams final : public ParamSource {
+ public:
+  explicit NodeHandleParams(const ros::NodeHandle& nh) : nh_(nh) {}
+  bool get(const std::string& name, std::string& value) const override;
+  bool get(const std::string& name, double& value) const override;
+  bool get(const std::string& name, int& value) const override;
+  bool get(const std::string& name, bool& value) const override;
+
+ private:
+  const ros::NodeHandle& nh_;
+};
+
+/// Parameters given as text, name -> value (numbers as decimal text, booleans as true/false/1/0).
+class TextParams final : public ParamSource {
+ public:
+  explicit TextParams(std::map<std::string, std::string> values) : values_(std::move(values)) {}
+  bool get(const std::string& name, std::string& value) const override;
+  bool get(const std::string& name, double& value) const override;
+  bool get(const std::string& name, int& value) const override;
+  bool get(const std::string& name, bool& value) const override;
+
+ private:
+  std::map<std::string, std::string> values_;
+};
 
 /// What to do with a scan whose sweep tf does not cover within tf_timeout.
 enum class OnTfFailure { kDrop, kPassThrough };
@@ -27,9 +67,12 @@ struct DeskewParams {
   int queue_size = 10;              ///< scans waiting for tf at most (older ones are dropped)
   double diagnostics_period = 1.0;  ///< [s]
 
-  /// Reads every parameter from `private_nh` (defaults above for the absent ones) and validates.
-  /// Throws core::InvalidInput naming the parameter for a bad value or type.
-  static DeskewParams load(const ros::NodeHandle& private_nh);
+  /// Reads every parameter (defaults above for the absent ones) and validates. Throws
+  /// core::InvalidInput naming the parameter for a bad value or type.
+  static DeskewParams load(const ParamSource& source);
+  static DeskewParams load(const ros::NodeHandle& private_nh) { return load(NodeHandleParams(private_nh)); }
+  /// The names load() reads.
+  static const std::vector<std::string>& names();
   /// Throws core::InvalidInput naming the first bad parameter.
   void validate() const;
 };

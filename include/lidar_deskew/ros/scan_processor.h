@@ -1,0 +1,57 @@
+// From a LaserScan message to the two outputs: the one code path of the live node and deskew_bag.
+#pragma once
+
+#include <pcl/point_cloud.h>
+#include <pcl_ros/point_cloud.h>
+#include <sensor_msgs/LaserScan.h>
+
+#include "lidar_deskew/core/deskew.h"
+#include "lidar_deskew/core/rebin.h"
+#include "lidar_deskew/ros/params.h"
+#include "lidar_deskew/ros/point_types.h"
+
+namespace lidar_deskew::ros_adapter {
+
+using DeskewedCloud = pcl::PointCloud<PointXYZITI>;
+
+/// A scan checked and timed, ready to be corrected once its motion is known.
+struct PreparedScan {
+  sensor_msgs::LaserScan::ConstPtr message;
+  core::PlanarScan scan;
+  core::BeamTiming timing;
+};
+
+/// The two outputs of one scan, in the scan's frame, stamped at the reference time.
+struct DeskewedOutputs {
+  sensor_msgs::LaserScan::ConstPtr scan;   ///< re-binned on the input grid
+  boost::shared_ptr<DeskewedCloud> cloud;  ///< x y z intensity t index
+};
+
+/// Corrects scans with the core; keeps its caches, so use one per input stream. Not thread-safe.
+class ScanProcessor {
+ public:
+  /// Throws core::InvalidInput for invalid parameters.
+  explicit ScanProcessor(const DeskewParams& params);
+
+  /// Checks a message and resolves its beam times. Throws core::InvalidInput naming the bad field
+  /// (an empty frame_id, or a stamp that puts the sweep outside ROS time, included).
+  PreparedScan prepare(const sensor_msgs::LaserScan::ConstPtr& message) const;
+
+  /// Corrects with `motion` (base in the fixed frame) and `mount` (base -> scan frame), re-bins, and
+  /// builds both messages. Throws core::MotionUnavailable when the motion does not cover the sweep.
+  DeskewedOutputs correct(const PreparedScan& prepared, const mrpt::poses::CPose3D& mount,
+                          const core::MotionSource& motion);
+
+  /// The uncorrected outputs (on_tf_failure: pass_through): the input scan itself, and its plain
+  /// polar projection stamped at the reference time (its t field is relative to that).
+  DeskewedOutputs passThrough(const PreparedScan& prepared);
+
+ private:
+  DeskewParams params_;
+  core::ScanDeskewer deskewer_;
+  core::ScanRebinner rebinner_;
+  core::DeskewedScan corrected_;
+  core::RebinnedScan rebinned_;
+};
+
+}  // namespace lidar_deskew::ros_adapter

@@ -1,0 +1,96 @@
+#include "lidar_deskew/ros/scan_processor.h"
+
+#include <pcl_conversions/pcl_conversions.h>
+
+#include "lidar_deskew/ros/conversions.h"
+
+namespace lidar_deskew::ros_adapter {
+namespace {
+
+/// The base stands still: correcting with it is the plain polar projection.
+class StandingStill final : public core::MotionSource {
+ public:
+  mrpt::poses::CPose3D basePose(core::TimeNs /*time*/) const override { return {}; }
+};
+
+boost::shared_ptr<DeskewedCloud> toCloud(const core::DeskewedScan& corrected,
+                                         const std_msgs::Header& header) {
+  auto cloud = boost::make_shared<DeskewedCloud>();
+  pcl_conversions::toPCL(header, cloud->header);
+  cloud->points.reserve(corrected.points.size());
+  for (const core::DeskewedPoint& point : corrected.points) {
+    PointXYZITI out;
+    out.x = static_cast<float>(point.position.x());
+    out.y = static_cast<float>(point.position.y());
+    out.z = static_cast<float>(point.position.z());
+    out.intensity = point.intensity;
+    out.t = static_cast<float>(point.time_offset);
+    out.index = point.beam_index;
+    cloud->points.push_back(out);
+  }
+  cloud->width = static_cast<std::uint32_t>(cloud->points.size());
+  cloud->height = 1;
+  cloud->is_dense = true;
+  return cloud;
+}
+
+}  // namespace
+
+ScanProcessor::ScanProcessor(const DeskewParams& params)
+    : params_(params), deskewer_(params.deskew), rebinner_(params.rebin) {}
+
+PreparedScan ScanProcessor::prepare(const sensor_msgs::LaserScan::ConstPtr& message) const {
+  PreparedScan prepared;
+  prepared.message = message;
+  if (message->header.frame_id.empty())
+    throw core::InvalidInput("header.frame_id", "is empty");
+  prepared.scan = fromMsg(*message);
+  core::validateScan(prepared.scan);
+  prepared.timing = core::resolveTiming(prepared.scan, params_.timing);
+  // ros::Time holds [0, 2^32) s; keep a margin for lookups and waiting beyond the sweep.
+  constexpr core::TimeNs kLatestTime = (static_cast<core::TimeNs>(1) << 32) * 1'000'000'000 - 100'000'000'000;
+  if (prepared.timing.earliestBeamTime() < 0 || prepared.timing.latestBeamTime() > kLatestTime) {
+    throw core::InvalidInput("header.stamp", "puts the sweep outside the range of ROS time");
+  }
+  return prepared;
+}
+
+DeskewedOutputs ScanProcessor::correct(const PreparedScan& prepared, const mrpt::poses::CPose3D& mount,
+                                       const core::MotionSource& motion) {
+  deskewer_.deskew(prepared.scan, prepared.timing, mount, motion, corrected_);
+  const core::PlanarScan& planar = prepared.scan;
+  rebinner_.rebin(corrected_, {planar.angle_min, planar.angle_increment, planar.ranges.size()},
+                  core::noReturnValue(planar), rebinned_);
+
+  const sensor_msgs::LaserScan& input = *prepared.message;
+  std_msgs::Header header = input.header;
+  header.stamp = toRosTime(corrected_.reference_time);
+  DeskewedOutputs outputs;
+  const auto corrected_scan = boost::make_shared<sensor_msgs::LaserScan>();
+  sensor_msgs::LaserScan& scan = *corrected_scan;
+  scan.header = header;
+  scan.angle_min = input.angle_min;
+  scan.angle_max = input.angle_max;
+  scan.angle_increment = input.angle_increment;
+  scan.time_increment = 0.0f;  // every beam now refers to the reference time
+  scan.scan_time = input.scan_time;
+  scan.range_min = input.range_min;
+  scan.range_max = input.range_max;
+  scan.ranges = rebinned_.ranges;
+  scan.intensities = rebinned_.intensities;
+  outputs.scan = corrected_scan;
+  outputs.cloud = toCloud(corrected_, header);
+  return outputs;
+}
+
+DeskewedOutputs ScanProcessor::passThrough(const PreparedScan& prepared) {
+  deskewer_.deskew(prepared.scan, prepared.timing, mrpt::poses::CPose3D(), StandingStill(), corrected_);
+  DeskewedOutputs outputs;
+  outputs.scan = prepared.message;  // republished as is
+  std_msgs::Header header = prepared.message->header;
+  header.stamp = toRosTime(corrected_.reference_time);  // the cloud's t is relative to it
+  outputs.cloud = toCloud(corrected_, header);
+  return outputs;
+}
+
+}  // namespace lidar_deskew::ros_adapter

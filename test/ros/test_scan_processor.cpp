@@ -1,0 +1,109 @@
+// ScanProcessor, the one code path of the node and deskew_bag: message checks and the messages it builds.
+#include <gtest/gtest.h>
+#include <pcl_conversions/pcl_conversions.h>
+#include <sensor_msgs/point_cloud2_iterator.h>
+
+#include "lidar_deskew/ros/conversions.h"
+#include "lidar_deskew/ros/scan_processor.h"
+
+namespace lidar_deskew::ros_adapter {
+namespace {
+
+sensor_msgs::LaserScan::Ptr makeScan() {
+  auto scan = boost::make_shared<sensor_msgs::LaserScan>();
+  scan->header.frame_id = "laser";
+  scan->header.stamp = ros::Time(1000, 500);
+  scan->angle_min = -1.0f;
+  scan->angle_increment = 0.01f;
+  scan->angle_max = -1.0f + 199 * 0.01f;
+  scan->time_increment = 1e-4f;
+  scan->scan_time = 0.1f;
+  scan->range_min = 0.1f;
+  scan->range_max = 20.0f;
+  scan->ranges.assign(200, 2.0f);
+  scan->ranges[7] = 0.0f;
+  scan->intensities.assign(200, 50.0f);
+  return scan;
+}
+
+std::string invalidField(const std::function<void()>& action) {
+  try {
+    action();
+  } catch (const core::InvalidInput& error) {
+    return error.field();
+  }
+  return "";
+}
+
+/// A base driving at 1 m/s along x.
+core::PoseSamples driving() {
+  core::PoseSamples samples;
+  for (int k = 0; k <= 4; ++k) {
+    samples.add(toNs(ros::Time(1000, 500)) + (k - 2) * 100'000'000,
+                mrpt::poses::CPose2D(0.1 * (k - 2), 0.0, 0.0));
+  }
+  return samples;
+}
+
+TEST(ScanProcessor, RejectsMessagesNamingTheField) {
+  ScanProcessor processor(DeskewParams{});
+  auto scan = makeScan();
+  EXPECT_EQ(invalidField([&] { processor.prepare(scan); }), "");
+  scan->header.frame_id.clear();
+  EXPECT_EQ(invalidField([&] { processor.prepare(scan); }), "header.frame_id");
+  scan = makeScan();
+  scan->intensities.resize(3);
+  EXPECT_EQ(invalidField([&] { processor.prepare(scan); }), "intensities");
+  // Stamped at the end with stamp 0: the first beam would be before time 0.
+  DeskewParams at_end;
+  at_end.timing.stamp_at = core::StampAt::kEnd;
+  ScanProcessor end_processor(at_end);
+  scan = makeScan();
+  scan->header.stamp = ros::Time(0, 0);
+  EXPECT_EQ(invalidField([&] { end_processor.prepare(scan); }), "header.stamp");
+  scan->header.stamp = ros::Time(0xFFFFFFFFu, 0);
+  EXPECT_EQ(invalidField([&] { processor.prepare(scan); }), "header.stamp");
+}
+
+TEST(ScanProcessor, BuildsTheCorrectedScanAndCloud) {
+  ScanProcessor processor(DeskewParams{});
+  const auto input = makeScan();
+  const PreparedScan prepared = processor.prepare(input);
+  const core::PoseSamples motion = driving();
+  const DeskewedOutputs outputs = processor.correct(prepared, mrpt::poses::CPose3D(), motion);
+  const sensor_msgs::LaserScan& scan = *outputs.scan;
+  EXPECT_EQ(scan.header.frame_id, "laser");
+  EXPECT_EQ(scan.header.stamp, input->header.stamp);  // reference start = first beam = stamp
+  EXPECT_EQ(scan.angle_min, input->angle_min);
+  EXPECT_EQ(scan.angle_increment, input->angle_increment);
+  EXPECT_EQ(scan.time_increment, 0.0f);
+  EXPECT_EQ(scan.ranges.size(), 200u);
+  EXPECT_EQ(scan.intensities.size(), 200u);
+  EXPECT_EQ(scan.ranges[7], 0.0f);  // the input's "no return" value
+  // Driving at 1 m/s: beam 199, 19.9 ms after the first, is seen 19.9 mm further along x.
+  const DeskewedCloud& cloud = *outputs.cloud;
+  ASSERT_EQ(cloud.size(), 199u);
+  EXPECT_EQ(cloud.header.frame_id, "laser");
+  const PointXYZITI& last = cloud.points.back();
+  EXPECT_EQ(last.index, 199u);
+  const double angle = -1.0 + 199 * static_cast<double>(0.01f);
+  EXPECT_NEAR(last.x, 2.0 * std::cos(angle) + 199 * 1e-4, 1e-5);
+  EXPECT_NEAR(last.t, 199 * 1e-4, 1e-7);
+  EXPECT_EQ(last.intensity, 50.0f);
+}
+
+TEST(ScanProcessor, PassThroughRepublishesTheInputAndStampsTheCloudAtItsReference) {
+  DeskewParams params;
+  params.deskew.reference = core::Reference::kEnd;
+  ScanProcessor processor(params);
+  const auto input = makeScan();
+  const DeskewedOutputs outputs = processor.passThrough(processor.prepare(input));
+  EXPECT_EQ(outputs.scan.get(), input.get());  // the very message, not a copy
+  const ros::Time end = input->header.stamp + ros::Duration(199 * static_cast<double>(input->time_increment));
+  EXPECT_NEAR((pcl_conversions::fromPCL(outputs.cloud->header).stamp - end).toSec(), 0.0, 1e-6);
+  EXPECT_NEAR(outputs.cloud->points.front().t, -199 * 1e-4, 1e-7);  // beam 0 is 19.9 ms before the end
+  EXPECT_NEAR(outputs.cloud->points.front().x, 2.0 * std::cos(-1.0), 1e-6);  // uncorrected
+}
+
+}  // namespace
+}  // namespace lidar_deskew::ros_adapter
