@@ -186,6 +186,13 @@ void LaserScanDeskewNode::tfCallback(const tf2_msgs::TFMessage::ConstPtr& messag
       }
       if (!is_static)
         motion_.observe(transform);
+      if (is_static && transform.child_frame_id == params_.base_frame) {
+        // The base moves: a static parent for it would make tf answer one pose for all times.
+        ROS_WARN_ONCE("%s: ignoring /tf_static %s -> %s: %s moves", name_.c_str(),
+                      transform.header.frame_id.c_str(), transform.child_frame_id.c_str(),
+                      params_.base_frame.c_str());
+        continue;
+      }
       try {
         buffer_.setTransform(transform, "tf", is_static);
       } catch (const tf2::TransformException& error) {
