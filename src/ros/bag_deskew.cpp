@@ -213,13 +213,15 @@ BagDeskewSummary deskewBag(const BagDeskewOptions& options) {
         ++summary.messages;
         continue;
       }
-      output.write(options.replace ? topic + "_raw" : topic, message.getTime(), message);
       ++summary.messages;
       ++summary.scans;
       const auto scan = message.instantiate<sensor_msgs::LaserScan>();
       if (!scan) {
         throw std::runtime_error(topic + " carries " + message.getDataType() + ", not sensor_msgs/LaserScan");
       }
+      // The scan as read (read once), with its original connection header.
+      output.write(options.replace ? topic + "_raw" : topic, message.getTime(), scan,
+                   message.getConnectionHeader());
       PreparedScan prepared;
       try {
         prepared = processor->second->prepare(scan);

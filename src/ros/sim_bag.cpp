@@ -48,11 +48,12 @@ void writeSimulationBag(const sim::Scenario& scenario, const SimBagOptions& opti
   const double tf_begin = -0.1;
   const double tf_end = scenario.duration + scan_period + 0.1;
   const long tf_samples = std::lround(std::floor((tf_end - tf_begin) * options.tf_rate));
-  for (long k = 0; k <= tf_samples; ++k) {
-    const double t = tf_begin + static_cast<double>(k) / options.tf_rate;
-    const sim::Pose2 base = trajectory.pose(t);
+  const auto tfTime = [&](long k) { return tf_begin + static_cast<double>(k) / options.tf_rate; };
+  const auto writeOdometry = [&](long k) {
+    const double t = tfTime(k);
     tf2_msgs::TFMessage transforms;
-    transforms.transforms.push_back(stamped(options.fixed_frame, options.base_frame, at(t), base));
+    transforms.transforms.push_back(
+        stamped(options.fixed_frame, options.base_frame, at(t), trajectory.pose(t)));
     bag.write("/tf", toRosTime(at(t)), transforms);
 
     nav_msgs::Odometry odometry;
@@ -66,13 +67,11 @@ void writeSimulationBag(const sim::Scenario& scenario, const SimBagOptions& opti
     odometry.twist.twist.linear.x = trajectory.speed(t);
     odometry.twist.twist.angular.z = trajectory.yawRate(t);
     bag.write("/odom", toRosTime(at(t)), odometry);
-  }
+  };
 
   std::mt19937 rng(options.seed);
-  for (int k = 0;; ++k) {
+  const auto writeScan = [&](int k) {
     const double start_time = k * scan_period;
-    if (start_time >= scenario.duration - 1e-9)
-      break;
     const sim::SimulatedScan simulated = sim::simulateScan(world, trajectory, scenario.mount, scenario.lidar,
                                                            epoch, start_time, options.noise ? &rng : nullptr);
     const core::PlanarScan& planar = simulated.scan;
@@ -90,7 +89,18 @@ void writeSimulationBag(const sim::Scenario& scenario, const SimBagOptions& opti
     scan.ranges = planar.ranges;
     // A driver publishes the scan once its last beam is measured.
     bag.write(options.scan_topic, toRosTime(at(start_time + scan_period)), scan);
+  };
+
+  // Written in time order, as a recorder does (readers then go through the file once).
+  const int scans = static_cast<int>(std::ceil(scenario.duration / scan_period - 1e-9));
+  long next_odometry = 0;
+  for (int k = 0; k < scans; ++k) {
+    while (next_odometry <= tf_samples && tfTime(next_odometry) <= (k + 1) * scan_period)
+      writeOdometry(next_odometry++);
+    writeScan(k);
   }
+  while (next_odometry <= tf_samples)
+    writeOdometry(next_odometry++);
   bag.close();
 
   sim::Truth truth;

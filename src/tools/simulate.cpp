@@ -3,7 +3,7 @@
 //
 //   deskew_simulate --list
 //   deskew_simulate --scenario UTM-30LX/high/arc --bag out.bag --truth out.truth [--noise] [--seed N]
-//                   [--tf-rate HZ] [--clockwise]
+//                   [--tf-rate HZ] [--clockwise] [--duration S]
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -30,6 +30,7 @@ int main(int argc, char** argv) {
   using namespace lidar_deskew;
   std::string scenario_name, bag_path, truth_path;
   bool clockwise = false;
+  double duration = 0.0;
   ros_adapter::SimBagOptions options;
   for (int a = 1; a < argc; ++a) {
     const std::string arg = argv[a];
@@ -44,6 +45,8 @@ int main(int argc, char** argv) {
       bag_path = argv[++a];
     } else if (arg == "--truth" && has_value) {
       truth_path = argv[++a];
+    } else if (arg == "--duration" && has_value) {
+      duration = std::atof(argv[++a]);
     } else if (arg == "--clockwise") {
       clockwise = true;
     } else if (arg == "--noise") {
@@ -66,6 +69,9 @@ int main(int argc, char** argv) {
     sim::Scenario scenario = sim::findScenario(scenario_name);
     if (clockwise) {
       scenario = sim::clockwiseVariant(scenario);
+    }
+    if (duration > 0.0) {  // longer recordings (benchmarks); the last motion piece goes on
+      scenario.duration = duration;
     }
     ros_adapter::writeSimulationBag(scenario, options, bag_path, truth_path);
   } catch (const std::exception& error) {
