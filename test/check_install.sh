@@ -23,6 +23,7 @@ for path in \
   share/lidar_deskew/rviz/deskew.rviz \
   lib/liblidar_deskew_nodelets.so \
   lib/lidar_deskew/deskew_node \
+  lib/lidar_deskew/deskew_bag \
   share/lidar_deskew/cmake/lidar_deskewConfig.cmake; do
   if [ -e "$prefix/$path" ]; then echo "ok      $path"; else echo "MISSING $path"; status=1; fi
 done

@@ -2,7 +2,8 @@
 // node. No roscore needed.
 //
 //   deskew_bag IN.bag OUT.bag [--scan-topic T]... [--replace] [--mount-from tf|tf_static]
-//              [--compression none|bz2|lz4] [--consistency] [--quiet] [--PARAMETER VALUE]...
+//              [--compression none|bz2|lz4] [--consistency] [--consistency-figure CSV] [--quiet]
+//              [--PARAMETER VALUE]...
 // PARAMETER is any of the node's parameters (README), e.g. --fixed-frame odom --reference end.
 #include <unistd.h>
 
@@ -23,7 +24,8 @@ using namespace lidar_deskew::ros_adapter;
 int usage(const char* program) {
   std::fprintf(stderr,
                "usage: %s IN.bag OUT.bag [--scan-topic T]... [--replace] [--mount-from tf|tf_static]\n"
-               "          [--compression none|bz2|lz4] [--consistency] [--quiet] [--PARAMETER VALUE]...\n"
+               "          [--compression none|bz2|lz4] [--consistency] [--consistency-figure CSV] [--quiet]\n"
+               "          [--PARAMETER VALUE]...\n"
                "PARAMETER: any of the node's parameters, with - or _:",
                program);
   for (const std::string& name : DeskewParams::names())
@@ -39,6 +41,7 @@ int main(int argc, char** argv) {
   options.scan_topics.clear();
   std::map<std::string, std::string> parameters;
   bool quiet = false, consistency = false;
+  std::string consistency_figure;
   std::vector<std::string> positional;
   for (int a = 1; a < argc; ++a) {
     const std::string arg = argv[a];
@@ -56,6 +59,9 @@ int main(int argc, char** argv) {
       options.compression = argv[++a];
     } else if (arg == "--consistency") {
       consistency = true;
+    } else if (arg == "--consistency-figure" && has_value) {
+      consistency = true;
+      consistency_figure = argv[++a];
     } else if (arg == "--quiet") {
       quiet = true;
     } else if (arg.rfind("--", 0) == 0 && has_value) {
@@ -111,8 +117,8 @@ int main(int argc, char** argv) {
       for (const std::string& topic : options.scan_topics) {
         const std::string corrected = options.replace ? topic : topic + "_deskewed";
         const std::string raw = options.replace ? topic + "_raw" : topic;
-        const ConsistencyReport report =
-            measureConsistency(options.output, raw, corrected, options.params, options.mount_from);
+        const ConsistencyReport report = measureConsistency(options.output, raw, corrected, options.params,
+                                                            options.mount_from, 0.1, 0.3, consistency_figure);
         std::printf(
             "  %s while turning (%zu scan pairs): consecutive scans %.1f mm apart raw, %.1f mm corrected\n",
             topic.c_str(), report.turning_pairs, report.raw_mm, report.corrected_mm);
