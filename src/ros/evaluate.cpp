@@ -13,6 +13,7 @@
 #include <fstream>
 #include <stdexcept>
 
+#include "lidar_deskew/ros/bag_tf.h"
 #include "lidar_deskew/ros/conversions.h"
 #include "lidar_deskew/ros/tf_motion.h"
 #include "lidar_deskew/sim/scenario.h"
@@ -74,32 +75,18 @@ void writeFigureCsv(const std::string& path, const sim::Truth& truth, const core
 Evaluation evaluateBag(const std::string& bag_path, const std::string& truth_path,
                        const EvaluateOptions& options) {
   const sim::Truth truth = sim::readTruth(truth_path);
-  rosbag::Bag bag;
-  try {
-    bag.open(bag_path, rosbag::bagmode::Read);
-  } catch (const rosbag::BagException& error) {
-    throw std::runtime_error("cannot read bag " + bag_path + ": " + error.what());
-  }
-
-  // All of tf first (the bag is short), so every scan's sweep is covered.
-  tf2::BufferCore buffer(ros::Duration(1e6));
-  TfMotionSource motion(buffer, options.fixed_frame, options.base_frame);
+  // All of the bag's tf in one buffer (the bag is short), so every scan's sweep is covered; read the
+  // way deskew_bag reads it.
+  rosbag::Bag bag = openForReading(bag_path);
+  DeskewParams frames;
+  frames.fixed_frame = options.fixed_frame;
+  frames.base_frame = options.base_frame;
+  const BagTf tf =
+      loadTf(bag, bag_path, scanFrames(bag, {options.scan_topic}), frames, MountSource::kTfStatic);
   std::vector<sensor_msgs::LaserScan::ConstPtr> scans;
-  for (const rosbag::MessageInstance& message : rosbag::View(bag)) {
-    if (message.getTopic() == "/tf" || message.getTopic() == "/tf_static") {
-      const auto transforms = message.instantiate<tf2_msgs::TFMessage>();
-      if (!transforms)
-        continue;
-      const bool is_static = message.getTopic() == "/tf_static";
-      for (const geometry_msgs::TransformStamped& transform : transforms->transforms) {
-        buffer.setTransform(transform, "bag", is_static);
-        if (!is_static)
-          motion.observe(transform);
-      }
-    } else if (message.getTopic() == options.scan_topic) {
-      if (auto scan = message.instantiate<sensor_msgs::LaserScan>())
-        scans.push_back(scan);
-    }
+  for (const rosbag::MessageInstance& message : rosbag::View(bag, rosbag::TopicQuery(options.scan_topic))) {
+    if (auto scan = message.instantiate<sensor_msgs::LaserScan>())
+      scans.push_back(scan);
   }
   if (scans.empty())
     throw std::runtime_error(bag_path + " has no LaserScan on " + options.scan_topic);
@@ -123,11 +110,10 @@ Evaluation evaluateBag(const std::string& bag_path, const std::string& truth_pat
     core::DeskewedScan corrected;
     sensor_msgs::PointCloud2 projected;
     try {
-      mount =
-          toPose(buffer.lookupTransform(options.base_frame, message.header.frame_id, ros::Time(0)).transform);
-      deskewer.deskew(scan, timing, mount, motion, corrected);
+      mount = tf.mounts.at(message.header.frame_id);
+      deskewer.deskew(scan, timing, mount, *tf.motion, corrected);
       projector.transformLaserScanToPointCloud(message.header.frame_id, message, projected,
-                                               options.fixed_frame, buffer, -1.0,
+                                               options.fixed_frame, *tf.buffer, -1.0,
                                                laser_geometry::channel_option::Index);
     } catch (const std::exception& error) {
       throw std::runtime_error(bag_path + ": scan " + std::to_string(k) + ": " + error.what());

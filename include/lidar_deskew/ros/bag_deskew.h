@@ -6,13 +6,10 @@
 #include <string>
 #include <vector>
 
+#include "lidar_deskew/ros/bag_tf.h"
 #include "lidar_deskew/ros/params.h"
 
 namespace lidar_deskew::ros_adapter {
-
-/// Where the laser mount (base_frame -> scan frame) is taken from when the bag has it on both
-/// /tf and /tf_static.
-enum class MountSource { kTfStatic, kTf };
 
 struct BagDeskewOptions {
   std::string input;
