@@ -6,7 +6,9 @@ export PATH=/usr/bin:/bin:/usr/sbin:/sbin:$PATH
 
 PACKAGES=(
   # toolchain and test tools
-  cmake g++ make git libgtest-dev libbenchmark-dev
+  cmake g++ make git libgtest-dev libbenchmark-dev bc
+  # fuzzing: clang with libFuzzer, ASan and UBSan
+  clang libclang-rt-14-dev
   # ROS 1 from Debian: catkin, roscpp, nodelet, tf2, messages, rostest, rosbag
   catkin ros-core-dev libroscpp-dev libnodeletlib-dev pluginlib-dev libtf2-dev libtf2-ros-dev
   libsensor-msgs-dev libnav-msgs-dev libgeometry-msgs-dev libtf2-msgs-dev librostest-dev librosbag-dev
