@@ -125,6 +125,13 @@ bool LiveRig::waitForOutputs(const ros::Time& stamp, double timeout, sensor_msgs
   return scan && cloud;
 }
 
+std::size_t LiveRig::outputCount(const ros::Time& from, const ros::Time& to) const {
+  std::size_t count = 0;
+  for (const auto& scan : scans_)
+    count += scan->header.stamp >= from && scan->header.stamp <= to;
+  return count;
+}
+
 std::string LiveRig::diagnostic(const std::string& key) const {
   const auto it = diagnostics_.find(key);
   return it == diagnostics_.end() ? std::string() : it->second;

@@ -37,6 +37,8 @@ class LiveRig {
   /// The outputs stamped `stamp`, when both arrived within `timeout` [s].
   bool waitForOutputs(const ros::Time& stamp, double timeout, sensor_msgs::LaserScan::ConstPtr& scan,
                       sensor_msgs::PointCloud2::ConstPtr& cloud);
+  /// How many corrected scans arrived stamped within [from, to].
+  std::size_t outputCount(const ros::Time& from, const ros::Time& to) const;
   /// The newest value of a diagnostics key of the deskew status (empty when none arrived yet).
   std::string diagnostic(const std::string& key) const;
   double diagnosticNumber(const std::string& key) const;
