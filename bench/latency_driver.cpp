@@ -24,12 +24,10 @@ int main(int argc, char** argv) {
   const sim::LidarModel model =
       sensor == "ILD26TRI" ? sim::LidarModel::ild26tri() : sim::LidarModel::utm30lx360();
   test::LiveRig rig(model);
-  rig.subscribeOutputs();
-  if (!rig.waitFor([&] { return rig.scan_publisher.getNumSubscribers() > 0; }, 10.0)) {
+  if (!rig.connect()) {
     std::fprintf(stderr, "latency_driver: the deskew did not subscribe to scan\n");
     return 1;
   }
-  rig.publishMount();
   const double period = 1.0 / model.rate;
   int published = 0;
   const ros::WallTime start = ros::WallTime::now();

@@ -2,9 +2,6 @@
 
 #include <rosbag/bag.h>
 #include <rosbag/view.h>
-#include <tf2/buffer_core.h>
-#include <tf2/exceptions.h>
-#include <tf2_msgs/TFMessage.h>
 #include <unistd.h>
 
 #include <chrono>
@@ -14,9 +11,6 @@
 #include <fstream>
 #include <map>
 #include <memory>
-#include <optional>
-#include <set>
-#include <sstream>
 
 #include "lidar_deskew/ros/bag_tf.h"
 #include "lidar_deskew/ros/conversions.h"

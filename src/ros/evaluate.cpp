@@ -5,8 +5,6 @@
 #include <rosbag/view.h>
 #include <sensor_msgs/LaserScan.h>
 #include <sensor_msgs/point_cloud2_iterator.h>
-#include <tf2/buffer_core.h>
-#include <tf2_msgs/TFMessage.h>
 
 #include <algorithm>
 #include <cmath>
@@ -15,7 +13,6 @@
 
 #include "lidar_deskew/ros/bag_tf.h"
 #include "lidar_deskew/ros/conversions.h"
-#include "lidar_deskew/ros/tf_motion.h"
 #include "lidar_deskew/sim/scenario.h"
 
 namespace lidar_deskew::ros_adapter {

@@ -52,6 +52,14 @@ void LiveRig::subscribeOutputs() {
       });
 }
 
+bool LiveRig::connect() {
+  subscribeOutputs();
+  if (!waitFor([&] { return scan_publisher.getNumSubscribers() == 1; }, 5.0))
+    return false;
+  publishMount();
+  return true;
+}
+
 void LiveRig::unsubscribeOutputs() {
   scan_subscriber_.shutdown();
   cloud_subscriber_.shutdown();

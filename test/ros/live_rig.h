@@ -23,6 +23,9 @@ class LiveRig {
 
   /// Subscribes to scan_deskewed, scan_deskewed_points (PointCloud2) and /diagnostics.
   void subscribeOutputs();
+  /// subscribeOutputs(), then waits until the deskew subscribes to `scan` (lazy subscription) and
+  /// publishes the mount. False when the deskew did not subscribe within 5 s.
+  bool connect();
   void unsubscribeOutputs();
 
   /// Waits until the deskew is connected to /tf and /tf_static, then publishes base_link -> laser.

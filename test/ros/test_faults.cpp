@@ -26,9 +26,7 @@ int playCovered(LiveRig& rig, double start, int count, double period = kScanPeri
 // tf arrives late (after the scan, within tf_timeout): the scan waits and is then corrected.
 TEST(Faults, LateTfIsWaitedFor) {
   LiveRig rig;
-  rig.subscribeOutputs();
-  ASSERT_TRUE(rig.waitFor([&] { return rig.scan_publisher.getNumSubscribers() == 1; }, 5.0));
-  rig.publishMount();
+  ASSERT_TRUE(rig.connect());
   const double start = 0.5;
   rig.publishTfUntil(start);
   rig.publishScan(start);
@@ -46,14 +44,10 @@ TEST(Faults, LateTfIsWaitedFor) {
 // counted, and scans of the new time line are corrected again.
 TEST(Faults, TfJumpingBackClearsAndRecovers) {
   LiveRig later;
-  later.subscribeOutputs();
-  ASSERT_TRUE(later.waitFor([&] { return later.scan_publisher.getNumSubscribers() == 1; }, 5.0));
-  later.publishMount();
+  ASSERT_TRUE(later.connect());
   ASSERT_EQ(playCovered(later, 20.0, 3), 3);  // stamps 20 s ahead of now
   LiveRig rig;                                // a new time line, starting now: 20 s back
-  rig.subscribeOutputs();
-  ASSERT_TRUE(rig.waitFor([&] { return rig.scan_publisher.getNumSubscribers() == 1; }, 5.0));
-  rig.publishMount();
+  ASSERT_TRUE(rig.connect());
   EXPECT_EQ(playCovered(rig, 0.5, 3), 3);
   EXPECT_TRUE(rig.waitFor([&] { return rig.diagnosticNumber("time jumps") >= 1; }, 5.0));
 }
@@ -61,9 +55,7 @@ TEST(Faults, TfJumpingBackClearsAndRecovers) {
 // The same scan twice (a duplicate stamp): each is corrected and published; nothing is dropped.
 TEST(Faults, DuplicateStampIsCorrectedTwice) {
   LiveRig rig;
-  rig.subscribeOutputs();
-  ASSERT_TRUE(rig.waitFor([&] { return rig.scan_publisher.getNumSubscribers() == 1; }, 5.0));
-  rig.publishMount();
+  ASSERT_TRUE(rig.connect());
   const double start = 40.0;
   rig.publishTfUntil(start + kScanPeriod + 0.02);
   rig.publishScan(start);
@@ -77,9 +69,7 @@ TEST(Faults, DuplicateStampIsCorrectedTwice) {
 // Scans at 4x the sensor's rate (160 Hz of 1440 beams): all corrected, none dropped.
 TEST(Faults, FourTimesTheRateIsServed) {
   LiveRig rig;
-  rig.subscribeOutputs();
-  ASSERT_TRUE(rig.waitFor([&] { return rig.scan_publisher.getNumSubscribers() == 1; }, 5.0));
-  rig.publishMount();
+  ASSERT_TRUE(rig.connect());
   const double start = 60.0;
   const int count = 80;
   rig.publishTfUntil(start + count * kScanPeriod / 4 + kScanPeriod + 0.02);

@@ -34,9 +34,7 @@ TEST(LiveDeskew, SubscribesToItsInputOnlyWhileSomeoneListens) {
 
 TEST(LiveDeskew, CorrectedCloudAndScanLieOnTheTrueWalls) {
   LiveRig rig;
-  rig.subscribeOutputs();
-  ASSERT_TRUE(rig.waitFor([&] { return rig.scan_publisher.getNumSubscribers() == 1; }, 5.0));
-  rig.publishMount();
+  ASSERT_TRUE(rig.connect());
   std::vector<double> cloud_errors, scan_errors, raw_errors;
   for (int k = 0; k < 10; ++k) {
     const double start = 0.1 + k * kScanPeriod;
@@ -76,9 +74,7 @@ TEST(LiveDeskew, CorrectedCloudAndScanLieOnTheTrueWalls) {
 // A scan whose sweep tf never covers: dropped and counted, or passed through uncorrected.
 TEST(LiveDeskew, TfGapDropsOrPassesThrough) {
   LiveRig rig;
-  rig.subscribeOutputs();
-  ASSERT_TRUE(rig.waitFor([&] { return rig.scan_publisher.getNumSubscribers() == 1; }, 5.0));
-  rig.publishMount();
+  ASSERT_TRUE(rig.connect());
   const double start = 1.0;
   rig.publishTfUntil(start - 0.01);  // tf stops before the sweep (too early to extrapolate from)
   const sim::SimulatedScan input = rig.publishScan(start);
@@ -106,9 +102,7 @@ TEST(LiveDeskew, TfGapDropsOrPassesThrough) {
 
 TEST(LiveDeskew, MalformedScanIsDroppedAndTheNextServed) {
   LiveRig rig;
-  rig.subscribeOutputs();
-  ASSERT_TRUE(rig.waitFor([&] { return rig.scan_publisher.getNumSubscribers() == 1; }, 5.0));
-  rig.publishMount();
+  ASSERT_TRUE(rig.connect());
   const double start = 2.0;
   rig.publishTfUntil(start + 3 * kScanPeriod + 0.02);
   rig.publishScan(start, [](sensor_msgs::LaserScan& message) { message.intensities.assign(7, 1.0f); });
@@ -128,9 +122,7 @@ TEST(LiveDeskew, MalformedScanIsDroppedAndTheNextServed) {
 // at once with the newest velocity; without, it waits until tf covers it.
 TEST(LiveDeskew, ExtrapolatesOnlyWhenAllowed) {
   LiveRig rig;
-  rig.subscribeOutputs();
-  ASSERT_TRUE(rig.waitFor([&] { return rig.scan_publisher.getNumSubscribers() == 1; }, 5.0));
-  rig.publishMount();
+  ASSERT_TRUE(rig.connect());
   const double start = 3.0;  // sweep [3.0, 3.025): tf up to 3.0 + 0.02 - ends 5 ms short
   rig.publishTfUntil(start + 0.02);
   rig.publishScan(start);
