@@ -97,10 +97,10 @@ Recording& recording(const std::string& name) {
   return *slot;
 }
 
-/// Ours as the node runs it: the mount looked up in tf once and cached, motion from tf (knots or per
+/// Ours as the node runs it: the mount looked up in tf for every scan, motion from tf (knots or per
 /// beam), the message converted and corrected.
 void deskewFromTf(Recording& rec, std::size_t k, core::ScanDeskewer& deskewer, core::DeskewedScan& out) {
-  static const mrpt::poses::CPose3D mount =
+  const mrpt::poses::CPose3D mount =
       ros_adapter::toPose(rec.buffer.lookupTransform("base_link", "laser", ros::Time(0)).transform);
   const core::PlanarScan scan = ros_adapter::fromMsg(rec.messages[k]);
   deskewer.deskew(scan, core::resolveTiming(scan, {}), mount, rec.motion, out);

@@ -1,8 +1,12 @@
 // libFuzzer target for the message path: arbitrary bytes deserialized as a sensor_msgs/LaserScan (any
 // sizes, NaN/inf fields, mismatched arrays, any stamp), then checked, timed, corrected and turned into
-// the output messages by ScanProcessor, as the node and deskew_bag do.
+// the output messages by ScanProcessor, as the node and deskew_bag do. Both output clouds (corrected and
+// pass-through) then go through the PointCloud2 conversion subscribers see: serialized by pcl_ros,
+// read back as sensor_msgs/PointCloud2, layout and every value checked.
 #include <fuzzer/FuzzedDataProvider.h>
 #include <ros/serialization.h>
+#include <sensor_msgs/PointCloud2.h>
+#include <sensor_msgs/point_cloud2_iterator.h>
 
 #include <cstdlib>
 #include <cstring>
@@ -11,6 +15,53 @@
 #include "lidar_deskew/ros/scan_processor.h"
 
 using namespace lidar_deskew;
+
+namespace {
+
+/// The cloud as subscribers outside the manager get it: serialized by pcl_ros from our point type,
+/// read back as a sensor_msgs/PointCloud2. Its layout must be x y z intensity t (float32) index
+/// (uint32), dense rows, and every value must read back unchanged through PointCloud2 iterators.
+void checkCloudOnTheWire(const ros_adapter::DeskewedCloud& cloud) {
+  std::vector<uint8_t> buffer(ros::serialization::serializationLength(cloud));
+  ros::serialization::OStream out(buffer.data(), static_cast<uint32_t>(buffer.size()));
+  ros::serialization::serialize(out, cloud);
+  sensor_msgs::PointCloud2 message;
+  ros::serialization::IStream in(buffer.data(), static_cast<uint32_t>(buffer.size()));
+  ros::serialization::deserialize(in, message);
+
+  const std::vector<std::pair<std::string, uint8_t>> expected = {
+      {"x", sensor_msgs::PointField::FLOAT32}, {"y", sensor_msgs::PointField::FLOAT32},
+      {"z", sensor_msgs::PointField::FLOAT32}, {"intensity", sensor_msgs::PointField::FLOAT32},
+      {"t", sensor_msgs::PointField::FLOAT32}, {"index", sensor_msgs::PointField::UINT32}};
+  if (message.fields.size() != expected.size())
+    std::abort();
+  for (std::size_t f = 0; f < expected.size(); ++f) {
+    const sensor_msgs::PointField& field = message.fields[f];
+    if (field.name != expected[f].first || field.datatype != expected[f].second || field.count != 1 ||
+        field.offset + 4 > message.point_step)
+      std::abort();
+  }
+  const std::size_t count = cloud.points.size();
+  if (message.height != 1 || message.width != count ||
+      message.row_step != message.width * message.point_step ||
+      message.data.size() != std::size_t{message.row_step} * message.height ||
+      message.header.frame_id != cloud.header.frame_id)
+    std::abort();
+  if (count == 0)
+    return;  // sensor_msgs' iterators call data.front() on empty data (their UB, noted, not ours)
+  sensor_msgs::PointCloud2ConstIterator<float> x(message, "x"), y(message, "y"), z(message, "z");
+  sensor_msgs::PointCloud2ConstIterator<float> intensity(message, "intensity"), t(message, "t");
+  sensor_msgs::PointCloud2ConstIterator<uint32_t> index(message, "index");
+  for (std::size_t i = 0; i < count; ++i, ++x, ++y, ++z, ++intensity, ++t, ++index) {
+    const PointXYZITI& point = cloud.points[i];
+    const auto same = [](float a, float b) { return std::memcmp(&a, &b, sizeof a) == 0; };
+    if (!same(*x, point.x) || !same(*y, point.y) || !same(*z, point.z) ||
+        !same(*intensity, point.intensity) || !same(*t, point.t) || *index != point.index)
+      std::abort();
+  }
+}
+
+}  // namespace
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* bytes, size_t size) {
   FuzzedDataProvider data(bytes, size);
@@ -72,7 +123,8 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* bytes, size_t size) {
       if (!std::isfinite(point.x) || !std::isfinite(point.y) || !std::isfinite(point.z))
         std::abort();
     }
-    processor.passThrough(prepared);
+    checkCloudOnTheWire(*outputs.cloud);
+    checkCloudOnTheWire(*processor.passThrough(prepared).cloud);
   } catch (const core::InvalidInput&) {
   } catch (const core::MotionUnavailable&) {
   }

@@ -72,4 +72,9 @@ void PoseSamples::appendSampleTimes(TimeNs begin, TimeNs end, std::vector<TimeNs
     times.push_back(it->time);
 }
 
+TimeNs PoseSamples::longestGap(TimeNs begin, TimeNs end) const {
+  return longestGapOf(samples_.begin(), samples_.end(), begin, end,
+                      [](const Sample& sample) { return sample.time; });
+}
+
 }  // namespace lidar_deskew::core

@@ -1,5 +1,6 @@
 #include "lidar_deskew/ros/deskew_node.h"
 
+#include <mrpt/math/CMatrixFixed.h>
 #include <pcl_ros/point_cloud.h>
 #include <tf2/exceptions.h>
 
@@ -34,11 +35,22 @@ class ExtrapolatingMotion final : public core::MotionSource {
                          std::vector<core::TimeNs>& times) const override {
     tf_.appendSampleTimes(begin, end, times);
   }
+  /// Gaps of tf up to its newest sample; beyond it the extrapolation is bounded by max_extrapolation.
+  core::TimeNs longestGap(core::TimeNs begin, core::TimeNs end) const override {
+    return tf_.longestGap(begin, std::min(end, newest_));
+  }
 
  private:
   const TfMotionSource& tf_;
   core::TimeNs newest_, previous_, limit_;
 };
+
+/// Equal to 1e-9 in every entry of the homogeneous matrix: a re-published but unchanged mount.
+bool samePose(const mrpt::poses::CPose3D& a, const mrpt::poses::CPose3D& b) {
+  const auto difference = a.getHomogeneousMatrixVal<mrpt::math::CMatrixDouble44>().asEigen() -
+                          b.getHomogeneousMatrixVal<mrpt::math::CMatrixDouble44>().asEigen();
+  return difference.cwiseAbs().maxCoeff() <= 1e-9;
+}
 
 }  // namespace
 
@@ -220,11 +232,11 @@ void LaserScanDeskewNode::timerCallback(const ros::WallTimerEvent& /*event*/) {
           ROS_ERROR_THROTTLE(1.0,
                              "%s: dropping scan: no transform %s -> %s (the laser mount) within tf_timeout",
                              name_.c_str(), params_.base_frame.c_str(), frame.c_str());
-          continue;
+        } else {
+          failOnTf(expired, "tf did not cover the sweep within tf_timeout");
         }
-        failOnTf(expired, "tf did not cover the sweep within tf_timeout");
+        processReady(now);  // scans behind an expired one may be ready: serve them before they expire
       }
-      processReady(now);                     // scans behind an expired one may be ready
     } catch (const std::exception& error) {  // never let an exception reach the manager
       ROS_ERROR_THROTTLE(1.0, "%s: error processing scans: %s", name_.c_str(), error.what());
     }
@@ -286,22 +298,28 @@ bool LaserScanDeskewNode::mountKnown(const std::string& frame) const {
 }
 
 bool LaserScanDeskewNode::lookupMount(const std::string& frame, mrpt::poses::CPose3D& mount) {
-  const auto cached = mounts_.find(frame);
-  if (cached != mounts_.end()) {
-    mount = cached->second;
-    return true;
-  }
+  // Looked up for every scan (about a microsecond): a re-published /tf_static (recalibration) or a
+  // mount on /tf is followed from the next scan on. The newest value serves the whole sweep.
+  const auto known = mounts_.find(frame);
   try {
     mount = toPose(buffer_.lookupTransform(params_.base_frame, frame, ros::Time(0)).transform);
   } catch (const tf2::TransformException& error) {
+    if (known != mounts_.end()) {  // the tf cache was cleared (time jump): keep the last mount
+      mount = known->second;
+      return true;
+    }
     ROS_ERROR_THROTTLE(1.0, "%s: no transform %s -> %s for the laser mount: %s", name_.c_str(),
                        params_.base_frame.c_str(), frame.c_str(), error.what());
     return false;
   }
+  if (known != mounts_.end() && samePose(known->second, mount))
+    return true;
+  if (known != mounts_.end())
+    ++counters_.mount_changes;
+  ROS_INFO("%s: mount %s -> %s%s: x %.3f y %.3f z %.3f m, yaw %.4f pitch %.4f roll %.4f rad", name_.c_str(),
+           params_.base_frame.c_str(), frame.c_str(), known != mounts_.end() ? " changed" : "", mount.x(),
+           mount.y(), mount.z(), mount.yaw(), mount.pitch(), mount.roll());
   mounts_[frame] = mount;
-  ROS_INFO("%s: mount %s -> %s: x %.3f y %.3f z %.3f m, yaw %.4f pitch %.4f roll %.4f rad", name_.c_str(),
-           params_.base_frame.c_str(), frame.c_str(), mount.x(), mount.y(), mount.z(), mount.yaw(),
-           mount.pitch(), mount.roll());
   return true;
 }
 
@@ -327,6 +345,10 @@ void LaserScanDeskewNode::correctAndPublish(const Pending& pending, bool extrapo
     } else {
       outputs = processor_.correct(pending.prepared, mount, motion_);
     }
+  } catch (const TfGapTooLong& error) {
+    ++counters_.tf_gaps;
+    failOnTf(pending, error.what());
+    return;
   } catch (const core::MotionUnavailable& error) {
     failOnTf(pending, error.what());
     return;
@@ -393,6 +415,8 @@ void LaserScanDeskewNode::produceDiagnostics(diagnostic_updater::DiagnosticStatu
   status.add("dropped: mount", counters_.dropped_mount);
   status.add("dropped: queue", counters_.dropped_queue);
   status.add("time_increment fallbacks", counters_.time_fallbacks);
+  status.add("tf gaps", counters_.tf_gaps);
+  status.add("mount changes", counters_.mount_changes);
   status.add("time jumps", counters_.time_jumps);
   status.add("waiting scans", pending_.size());
   const double done = std::max<std::uint64_t>(1, counters_.published);

@@ -15,10 +15,11 @@ void requireNonNegative(double value, const char* name) {
   }
 }
 
-const char* const kNames[] = {"fixed_frame",        "base_frame",       "stamp_at",          "scan_period",
-                              "max_sweep_duration", "reference",        "knot_interval",     "exact",
-                              "rebin_min_gap",      "rebin_gap_factor", "tf_timeout",        "on_tf_failure",
-                              "max_extrapolation",  "queue_size",       "diagnostics_period"};
+const char* const kNames[] = {
+    "fixed_frame",        "base_frame",        "stamp_at",      "scan_period",
+    "max_sweep_duration", "reference",         "knot_interval", "exact",
+    "rebin_min_gap",      "rebin_gap_factor",  "tf_timeout",    "on_tf_failure",
+    "max_tf_gap",         "max_extrapolation", "queue_size",    "diagnostics_period"};
 
 template <typename T>
 bool getFromNodeHandle(const ros::NodeHandle& nh, const std::string& name, T& value, const char* expected) {
@@ -137,6 +138,7 @@ DeskewParams DeskewParams::load(const ParamSource& source) {
       throw core::InvalidInput("on_tf_failure", "must be 'drop' or 'pass_through', got '" + text + "'");
     }
   }
+  source.get("max_tf_gap", params.max_tf_gap);
   source.get("max_extrapolation", params.max_extrapolation);
   source.get("queue_size", params.queue_size);
   source.get("diagnostics_period", params.diagnostics_period);
@@ -158,6 +160,7 @@ void DeskewParams::validate() const {
   }
   rebin.validate();
   requireNonNegative(tf_timeout, "tf_timeout");
+  requireNonNegative(max_tf_gap, "max_tf_gap");
   requireNonNegative(max_extrapolation, "max_extrapolation");
   if (max_extrapolation > 1.0)
     throw core::InvalidInput("max_extrapolation", "must be <= 1 s");

@@ -1,5 +1,7 @@
 #include "lidar_deskew/ros/scan_processor.h"
 
+#include <algorithm>
+
 #include <pcl_conversions/pcl_conversions.h>
 
 #include "lidar_deskew/ros/conversions.h"
@@ -17,7 +19,9 @@ boost::shared_ptr<DeskewedCloud> toCloud(const core::DeskewedScan& corrected,
                                          const std_msgs::Header& header) {
   auto cloud = boost::make_shared<DeskewedCloud>();
   pcl_conversions::toPCL(header, cloud->header);
-  cloud->points.reserve(corrected.points.size());
+  // At least one slot: pcl_ros serializes with memcpy from points.data(), which must not be null even
+  // for an empty cloud (undefined behaviour found by fuzz_messages).
+  cloud->points.reserve(std::max<std::size_t>(1, corrected.points.size()));
   for (const core::DeskewedPoint& point : corrected.points) {
     PointXYZITI out;
     out.x = static_cast<float>(point.position.x());
@@ -57,6 +61,15 @@ PreparedScan ScanProcessor::prepare(const sensor_msgs::LaserScan::ConstPtr& mess
 
 DeskewedOutputs ScanProcessor::correct(const PreparedScan& prepared, const mrpt::poses::CPose3D& mount,
                                        const core::MotionSource& motion) {
+  if (params_.max_tf_gap > 0.0) {
+    const core::TimeNs first = prepared.timing.earliestBeamTime();
+    const core::TimeNs gap = motion.longestGap(first, prepared.timing.latestBeamTime());
+    if (gap > core::secondsToNs(params_.max_tf_gap)) {
+      throw TfGapTooLong(first, "tf has a gap of " + std::to_string(gap * 1e-9) +
+                                    " s within the sweep (more than max_tf_gap " +
+                                    std::to_string(params_.max_tf_gap) + " s)");
+    }
+  }
   deskewer_.deskew(prepared.scan, prepared.timing, mount, motion, corrected_);
   const core::PlanarScan& planar = prepared.scan;
   rebinner_.rebin(corrected_, {planar.angle_min, planar.angle_increment, planar.ranges.size()},

@@ -26,6 +26,11 @@ void TfMotionSource::appendSampleTimes(core::TimeNs begin, core::TimeNs end,
     times.push_back(*it);
 }
 
+core::TimeNs TfMotionSource::longestGap(core::TimeNs begin, core::TimeNs end) const {
+  return core::longestGapOf(sample_times_.begin(), sample_times_.end(), begin, end,
+                            [](core::TimeNs time) { return time; });
+}
+
 void TfMotionSource::observe(const geometry_msgs::TransformStamped& transform) {
   const bool from_fixed = transform.header.frame_id == fixed_frame_;
   const bool to_base = transform.child_frame_id == base_frame_;

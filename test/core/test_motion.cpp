@@ -98,5 +98,21 @@ TEST(PoseSamples, ReportsSampleTimesStrictlyInside) {
   EXPECT_EQ(times[1], kT0 + 30);
 }
 
+// Samples at 0, 10, 20, 60, 70 (a 40 ns gap): the gap counts exactly where [begin, end] overlaps it.
+TEST(PoseSamples, LongestGapIsTheWidestIntervalOverlappingTheRange) {
+  PoseSamples samples;
+  for (const TimeNs t : {0, 10, 20, 60, 70})
+    samples.add(kT0 + t, CPose2D(static_cast<double>(t), 0, 0));
+  EXPECT_EQ(samples.longestGap(kT0 + 30, kT0 + 40), 40);   // inside the gap
+  EXPECT_EQ(samples.longestGap(kT0 + 2, kT0 + 8), 10);     // between two close samples
+  EXPECT_EQ(samples.longestGap(kT0 + 5, kT0 + 65), 40);    // across the gap
+  EXPECT_EQ(samples.longestGap(kT0 + 20, kT0 + 20), 0);    // an instant at a sample: answered exactly
+  EXPECT_EQ(samples.longestGap(kT0 + 10, kT0 + 20), 10);   // ends at the gap's first sample
+  EXPECT_EQ(samples.longestGap(kT0 + 60, kT0 + 70), 10);   // starts at its last one
+  EXPECT_EQ(samples.longestGap(kT0 - 50, kT0 + 5), 10);    // before the samples: not a gap
+  EXPECT_EQ(samples.longestGap(kT0 + 65, kT0 + 500), 10);  // after them: not a gap either
+  EXPECT_EQ(PoseSamples().longestGap(kT0, kT0 + 10), 0);
+}
+
 }  // namespace
 }  // namespace lidar_deskew::core

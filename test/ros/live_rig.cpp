@@ -3,6 +3,7 @@
 #include <sensor_msgs/point_cloud2_iterator.h>
 #include <tf2_msgs/TFMessage.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include "lidar_deskew/ros/conversions.h"
@@ -23,11 +24,13 @@ geometry_msgs::TransformStamped stamped(const std::string& parent, const std::st
 
 }  // namespace
 
-LiveRig::LiveRig(const sim::LidarModel& lidar)
+LiveRig::LiveRig(const sim::LidarModel& lidar, const std::string& ns)
     : world(sim::World::demoRoom()),
       trajectory({-2.0, -1.0, 0.3}, 6.0, 5.0),
       mount{0.25, 0.05, 0.1},
-      model(lidar) {
+      model(lidar),
+      nh_(ns),
+      diagnostics_name_(ns.empty() ? "deskew" : ns + "/") {
   // Whole milliseconds: stamps then land exactly on the tf sample grid.
   epoch_.fromNSec(ros::Time::now().toNSec() / 1'000'000 * 1'000'000);
   tf_publisher_ = nh_.advertise<tf2_msgs::TFMessage>("/tf", 100);
@@ -37,14 +40,21 @@ LiveRig::LiveRig(const sim::LidarModel& lidar)
 
 void LiveRig::subscribeOutputs() {
   scan_subscriber_ = nh_.subscribe<sensor_msgs::LaserScan>(
-      "scan_deskewed", 20, [this](const sensor_msgs::LaserScan::ConstPtr& scan) { scans_.push_back(scan); });
+      "scan_deskewed", 20, [this](const sensor_msgs::LaserScan::ConstPtr& scan) {
+        scans_.push_back(scan);
+        if (scans_.size() > history_)
+          scans_.pop_front();
+      });
   cloud_subscriber_ = nh_.subscribe<sensor_msgs::PointCloud2>(
-      "scan_deskewed_points", 20,
-      [this](const sensor_msgs::PointCloud2::ConstPtr& cloud) { clouds_.push_back(cloud); });
+      "scan_deskewed_points", 20, [this](const sensor_msgs::PointCloud2::ConstPtr& cloud) {
+        clouds_.push_back(cloud);
+        if (clouds_.size() > history_)
+          clouds_.pop_front();
+      });
   diagnostics_subscriber_ = nh_.subscribe<diagnostic_msgs::DiagnosticArray>(
       "/diagnostics", 20, [this](const diagnostic_msgs::DiagnosticArray::ConstPtr& array) {
         for (const auto& status : array->status) {
-          if (status.name.find("deskew") == std::string::npos)
+          if (status.name.find(diagnostics_name_) == std::string::npos)
             continue;
           for (const auto& value : status.values)
             diagnostics_[value.key] = value.value;
@@ -54,7 +64,14 @@ void LiveRig::subscribeOutputs() {
 
 bool LiveRig::connect() {
   subscribeOutputs();
-  if (!waitFor([&] { return scan_publisher.getNumSubscribers() == 1; }, 5.0))
+  // Both ways: the deskew reads `scan`, and this rig's output subscriptions are connected (when the
+  // deskew already had other subscribers, it was reading `scan` before this rig subscribed).
+  if (!waitFor(
+          [&] {
+            return scan_publisher.getNumSubscribers() == 1 && scan_subscriber_.getNumPublishers() > 0 &&
+                   cloud_subscriber_.getNumPublishers() > 0;
+          },
+          5.0))
     return false;
   publishMount();
   return true;
@@ -70,12 +87,23 @@ void LiveRig::publishMount() {
   waitFor(
       [&] { return tf_publisher_.getNumSubscribers() > 0 && tf_static_publisher_.getNumSubscribers() > 0; },
       10.0);
+  setMount(mount);
+}
+
+void LiveRig::setMount(const sim::Pose2& new_mount) {
+  mount = new_mount;
+  publishStatic("base_link", "laser", mount);
+}
+
+void LiveRig::publishStatic(const std::string& parent, const std::string& child, const sim::Pose2& pose) {
   tf2_msgs::TFMessage message;
-  message.transforms.push_back(stamped("base_link", "laser", epoch_, mount));
+  message.transforms.push_back(stamped(parent, child, epoch_, pose));
   tf_static_publisher_.publish(message);
 }
 
 void LiveRig::publishTfUntil(double t) {
+  if (tf_until_ < 0.0)  // the first call: a second of history is enough (and keeps time from going back)
+    tf_until_ = std::max(tf_until_, t - 1.0);
   for (double sample = std::round(tf_until_ / 0.02) * 0.02 + 0.02; sample <= t + 1e-9; sample += 0.02) {
     tf2_msgs::TFMessage message;
     message.transforms.push_back(stamped("odom", "base_link", stampOf(sample), trajectory.pose(sample)));

@@ -18,20 +18,32 @@ namespace lidar_deskew::test {
 
 class LiveRig {
  public:
-  /// Advertises /tf, /tf_static (latched) and `scan`; t = 0 of the simulation is ros::Time::now().
-  explicit LiveRig(const sim::LidarModel& lidar = sim::LidarModel::utm30lx360());
+  /// Advertises /tf, /tf_static (latched) and `scan` in namespace `ns`; t = 0 of the simulation is
+  /// ros::Time::now(). With `ns`, only the diagnostics of a deskew named in it are read.
+  explicit LiveRig(const sim::LidarModel& lidar = sim::LidarModel::utm30lx360(), const std::string& ns = "");
+
+  /// Takes t = 0 from `other`, so that one rig's tf serves both rigs' scans.
+  void shareClockWith(const LiveRig& other) { epoch_ = other.epoch_; }
+  /// Keeps at most the newest `count` outputs of each kind (long runs).
+  void limitHistory(std::size_t count) { history_ = count; }
 
   /// Subscribes to scan_deskewed, scan_deskewed_points (PointCloud2) and /diagnostics.
   void subscribeOutputs();
-  /// subscribeOutputs(), then waits until the deskew subscribes to `scan` (lazy subscription) and
-  /// publishes the mount. False when the deskew did not subscribe within 5 s.
+  /// subscribeOutputs(), then waits until the deskew subscribes to `scan` (lazy subscription) and the
+  /// outputs are connected, and publishes the mount. False when that did not happen within 5 s.
   bool connect();
   void unsubscribeOutputs();
 
   /// Waits until the deskew is connected to /tf and /tf_static, then publishes base_link -> laser.
   void publishMount();
+  /// Publishes a new base_link -> laser on /tf_static (as a recalibration would); later scans use it.
+  void setMount(const sim::Pose2& new_mount);
+  /// Publishes parent -> child on /tf_static, stamped at t = 0 (only this transform in the message).
+  void publishStatic(const std::string& parent, const std::string& child, const sim::Pose2& pose);
   /// odom -> base_link samples every 20 ms from the last published one up to t [s] (inclusive).
   void publishTfUntil(double t);
+  /// Leaves out the samples up to t [s]: the next publishTfUntil() starts after t (a tf gap).
+  void skipTfUntil(double t) { tf_until_ = t; }
   /// The scan whose first beam is at t [s] (noise off), as the driver publishes it.
   sim::SimulatedScan publishScan(double t, const std::function<void(sensor_msgs::LaserScan&)>& modify = {});
 
@@ -51,12 +63,14 @@ class LiveRig {
 
   const sim::World world;
   const sim::ArcTrajectory trajectory;
-  const sim::Pose2 mount;
+  sim::Pose2 mount;  ///< base_link -> laser, as last published
   const sim::LidarModel model;
   ros::Publisher scan_publisher;
 
  private:
   ros::NodeHandle nh_;
+  std::string diagnostics_name_;  // a status is read when its name holds this
+  std::size_t history_ = static_cast<std::size_t>(-1);
   ros::Time epoch_;
   double tf_until_ = -0.1;
   ros::Publisher tf_publisher_, tf_static_publisher_;

@@ -2,6 +2,11 @@
 // behaviour and checks it, including the diagnostics counters.
 #include <gtest/gtest.h>
 
+#include <std_msgs/UInt32.h>
+
+#include <algorithm>
+#include <cstdio>
+
 #include "live_rig.h"
 
 namespace lidar_deskew::test {
@@ -10,17 +15,27 @@ namespace {
 constexpr double kScanPeriod = 1.0 / 40.0;
 
 /// Plays `count` scans from `start`, each with tf covering it first; returns how many outputs came.
-int playCovered(LiveRig& rig, double start, int count, double period = kScanPeriod) {
+/// `worst_rms` [m], when given, receives the largest RMS distance of a corrected cloud to the walls.
+int playCovered(LiveRig& rig, double start, int count, double* worst_rms = nullptr) {
   int received = 0;
   for (int k = 0; k < count; ++k) {
-    const double t = start + k * period;
+    const double t = start + k * kScanPeriod;
     rig.publishTfUntil(t + kScanPeriod + 0.02);
     rig.publishScan(t);
     sensor_msgs::LaserScan::ConstPtr scan;
     sensor_msgs::PointCloud2::ConstPtr cloud;
-    received += rig.waitForOutputs(rig.stampOf(t), 5.0, scan, cloud);
+    if (!rig.waitForOutputs(rig.stampOf(t), 5.0, scan, cloud))
+      continue;
+    ++received;
+    if (worst_rms)
+      *worst_rms = std::max(*worst_rms, rms(cloudDistances(rig, *cloud)));
   }
   return received;
+}
+
+/// Waits until the diagnostics report `key` at `value` (they come every 0.2 s).
+bool diagnosticReaches(LiveRig& rig, const std::string& key, double value) {
+  return rig.waitFor([&] { return rig.diagnosticNumber(key) == value; }, 5.0);
 }
 
 // tf arrives late (after the scan, within tf_timeout): the scan waits and is then corrected.
@@ -90,6 +105,151 @@ TEST(Faults, FourTimesTheRateIsServed) {
         return rig.diagnosticNumber("dropped: queue") == 0.0 && rig.diagnosticNumber("dropped: tf") == 0.0;
       },
       5.0));
+}
+
+// A tf gap mid-scan. Up to max_tf_gap (0.1 s here) tf2 interpolates across it and the scan is corrected:
+// the chord replaces the arc, off by at most v·ω·h²/8. A longer gap is treated like missing tf: the
+// scan is dropped (on_tf_failure: drop) and counted under "tf gaps"; the next covered scan is served.
+TEST(Faults, TfGapMidScanIsBridgedUpToMaxTfGap) {
+  LiveRig rig;
+  ASSERT_TRUE(rig.connect());
+  ASSERT_TRUE(rig.waitFor([&] { return !rig.diagnostic("dropped: tf").empty(); }, 5.0));
+  const double dropped_tf = rig.diagnosticNumber("dropped: tf");
+  // 80 ms without samples (79.98 -> 80.06) around the sweep [80.010, 80.035].
+  rig.publishTfUntil(79.98);
+  rig.skipTfUntil(80.04);
+  rig.publishTfUntil(80.08);
+  rig.publishScan(80.010);
+  sensor_msgs::LaserScan::ConstPtr scan;
+  sensor_msgs::PointCloud2::ConstPtr cloud;
+  ASSERT_TRUE(rig.waitForOutputs(rig.stampOf(80.010), 5.0, scan, cloud));
+  const double v = 6.0, w = 5.0, h = 0.08;  // the rig's arc, and the gap
+  const double bridged = rms(cloudDistances(rig, *cloud));
+  EXPECT_LT(bridged, v * w * h * h / 8.0) << "chord bound " << v * w * h * h / 8.0;
+  std::printf("across an 80 ms tf gap: %.2f mm RMS (chord bound %.1f mm)\n", 1e3 * bridged,
+              1e3 * v * w * h * h / 8.0);
+  EXPECT_TRUE(diagnosticReaches(rig, "tf gaps", 0.0));
+
+  // 200 ms without samples (81.00 -> 81.20) around the sweep [81.010, 81.035]: refused at once.
+  rig.publishTfUntil(81.00);
+  rig.skipTfUntil(81.18);
+  rig.publishTfUntil(81.22);
+  rig.publishScan(81.010);
+  EXPECT_TRUE(diagnosticReaches(rig, "tf gaps", 1.0));
+  EXPECT_TRUE(diagnosticReaches(rig, "dropped: tf", dropped_tf + 1.0));
+  EXPECT_FALSE(rig.waitForOutputs(rig.stampOf(81.010), 0.5, scan, cloud));
+  double worst = 0.0;
+  EXPECT_EQ(playCovered(rig, 81.25, 2, &worst), 2);  // tf is regular again
+  EXPECT_LT(worst, 2e-3);
+}
+
+// The mount changes at run time (/tf_static re-published, as after a recalibration): scans are
+// corrected with the new mount from then on, and the change is logged and counted. A re-published
+// but equal mount is not a change.
+TEST(Faults, MountChangeAtRunTimeIsFollowed) {
+  LiveRig rig;
+  ASSERT_TRUE(rig.connect());
+  double worst = 0.0;
+  ASSERT_EQ(playCovered(rig, 100.0, 2, &worst), 2);
+  EXPECT_LT(worst, 2e-3);
+  rig.setMount(rig.mount);                 // the same again
+  rig.setMount({0.10, -0.20, 0.1 + 0.4});  // moved 0.26 m and turned 0.4 rad: the old one is metres off
+  ros::WallDuration(0.2).sleep();          // /tf_static and the scans come over different connections
+  worst = 0.0;
+  EXPECT_EQ(playCovered(rig, 100.1, 3, &worst), 3);
+  EXPECT_LT(worst, 2e-3);
+  EXPECT_TRUE(diagnosticReaches(rig, "mount changes", 1.0));
+}
+
+// A scan whose mount (base_link -> its frame) is unknown waits for it: a mount that comes late is used;
+// one that never comes drops the scan after tf_timeout, counted as "dropped: mount".
+TEST(Faults, MissingMountIsWaitedForThenDropped) {
+  LiveRig rig;
+  ASSERT_TRUE(rig.connect());
+  ASSERT_TRUE(rig.waitFor([&] { return !rig.diagnostic("dropped: mount").empty(); }, 5.0));
+  const double dropped_mount = rig.diagnosticNumber("dropped: mount");
+  const auto in = [](const std::string& frame) {
+    return [frame](sensor_msgs::LaserScan& scan) { scan.header.frame_id = frame; };
+  };
+  rig.publishTfUntil(120.1);
+  rig.publishScan(120.0, in("laser_never"));
+  rig.publishScan(120.025, in("laser_late"));
+  sensor_msgs::LaserScan::ConstPtr scan;
+  sensor_msgs::PointCloud2::ConstPtr cloud;
+  EXPECT_FALSE(rig.waitForOutputs(rig.stampOf(120.025), 0.1, scan, cloud));  // waiting for its mount
+  rig.publishStatic("base_link", "laser_late", rig.mount);  // the laser's true mount, under another name
+  ASSERT_TRUE(rig.waitForOutputs(rig.stampOf(120.025), 5.0, scan, cloud));
+  EXPECT_LT(rms(cloudDistances(rig, *cloud)), 2e-3);
+  EXPECT_TRUE(diagnosticReaches(rig, "dropped: mount", dropped_mount + 1.0));
+  EXPECT_FALSE(rig.waitForOutputs(rig.stampOf(120.0), 0.1, scan, cloud));
+}
+
+// More scans wait for tf than queue_size (10): the oldest are dropped and counted as "dropped: queue";
+// the newest 10 are corrected once tf comes.
+TEST(Faults, QueueOverflowDropsTheOldest) {
+  LiveRig rig;
+  ASSERT_TRUE(rig.connect());
+  ASSERT_TRUE(rig.waitFor([&] { return !rig.diagnostic("dropped: queue").empty(); }, 5.0));
+  const double dropped_queue = rig.diagnosticNumber("dropped: queue");
+  const double start = 130.0;
+  rig.publishTfUntil(start);
+  for (int k = 0; k < 15; ++k) {  // within 0.1 s, well inside tf_timeout
+    rig.publishScan(start + k * kScanPeriod);
+    rig.waitFor([] { return false; }, 0.005);
+  }
+  rig.publishTfUntil(start + 16 * kScanPeriod);
+  const ros::Time first = rig.stampOf(start), last = rig.stampOf(start + 14 * kScanPeriod);
+  EXPECT_TRUE(rig.waitFor([&] { return rig.outputCount(first, last) == 10; }, 5.0))
+      << rig.outputCount(first, last);
+  EXPECT_EQ(rig.outputCount(first, rig.stampOf(start + 4 * kScanPeriod)), 0u);
+  EXPECT_TRUE(diagnosticReaches(rig, "dropped: queue", dropped_queue + 5.0));
+}
+
+// A /tf_static parent for the moving base (a common URDF slip) would make tf answer one pose for every
+// time: it is ignored, with a warning, and scans stay corrected.
+TEST(Faults, StaticParentOfTheBaseIsIgnored) {
+  LiveRig rig;
+  ASSERT_TRUE(rig.connect());
+  rig.publishStatic("map", "base_link", {1.0, 2.0, 0.5});
+  ros::WallDuration(0.2).sleep();
+  double worst = 0.0;
+  EXPECT_EQ(playCovered(rig, 135.0, 3, &worst), 3);
+  EXPECT_LT(worst, 2e-3);
+}
+
+// A subscriber that takes 0.5 s per message (its socket fills up): every scan still reaches the other
+// subscribers, nothing is dropped, and the slow one only gets what it can take. Runs last: the slow
+// subscriber has been connected since the start.
+TEST(Faults, SlowSubscriberDoesNotHoldOthersBack) {
+  LiveRig rig;
+  ASSERT_TRUE(rig.connect());
+  ros::NodeHandle nh;
+  int slow = -1;
+  const ros::Subscriber slow_count = nh.subscribe<std_msgs::UInt32>(
+      "/slow_subscriber/received", 10, [&](const std_msgs::UInt32::ConstPtr& count) { slow = count->data; });
+  ASSERT_TRUE(rig.waitFor([&] { return slow >= 0; }, 10.0)) << "the slow subscriber never got a message";
+  const int slow_before = slow;
+  ASSERT_TRUE(rig.waitFor([&] { return !rig.diagnostic("dropped: tf").empty(); }, 5.0));
+  const double dropped_tf = rig.diagnosticNumber("dropped: tf");
+  const double dropped_queue = rig.diagnosticNumber("dropped: queue");
+
+  const double start = 140.0;
+  const int count = 120;  // 3 s at 40 Hz
+  for (int k = 0; k < count; ++k) {
+    const double t = start + k * kScanPeriod;
+    rig.publishTfUntil(t + kScanPeriod + 0.02);
+    rig.publishScan(t);
+    rig.waitFor([] { return false; }, kScanPeriod);  // spins while waiting for the next scan
+  }
+  const ros::Time first = rig.stampOf(start), last = rig.stampOf(start + (count - 1) * kScanPeriod);
+  EXPECT_TRUE(
+      rig.waitFor([&] { return rig.outputCount(first, last) == static_cast<std::size_t>(count); }, 5.0))
+      << rig.outputCount(first, last) << " of " << count;
+  EXPECT_EQ(rig.diagnosticNumber("dropped: tf"), dropped_tf);
+  EXPECT_EQ(rig.diagnosticNumber("dropped: queue"), dropped_queue);
+  EXPECT_LT(slow - slow_before, count / 4) << "the slow subscriber was not slow";
+  std::printf("slow subscriber took %d messages while the others got %d scans and %d clouds\n",
+              slow - slow_before, count, count);
 }
 
 }  // namespace

@@ -105,5 +105,49 @@ TEST(ScanProcessor, PassThroughRepublishesTheInputAndStampsTheCloudAtItsReferenc
   EXPECT_NEAR(outputs.cloud->points.front().x, 2.0 * std::cos(-1.0), 1e-6);  // uncorrected
 }
 
+// The same 1 m/s drive sampled only 0.4 s before and after the scan: an 0.8 s gap. Beyond max_tf_gap
+// (0.5 s by default) the scan is refused; with a larger limit it is bridged, exactly here since the
+// motion is linear.
+TEST(ScanProcessor, RefusesSweepsInsideALongerGapThanMaxTfGap) {
+  core::PoseSamples sparse;
+  const core::TimeNs stamp = toNs(ros::Time(1000, 500));
+  sparse.add(stamp - 400'000'000, mrpt::poses::CPose2D(-0.4, 0.0, 0.0));
+  sparse.add(stamp + 400'000'000, mrpt::poses::CPose2D(0.4, 0.0, 0.0));
+  ScanProcessor strict(DeskewParams{});
+  const PreparedScan prepared = strict.prepare(makeScan());
+  EXPECT_THROW(strict.correct(prepared, mrpt::poses::CPose3D(), sparse), TfGapTooLong);
+  EXPECT_NO_THROW(strict.correct(prepared, mrpt::poses::CPose3D(), driving()));  // 0.1 s apart
+
+  DeskewParams tolerant;
+  tolerant.max_tf_gap = 1.0;
+  ScanProcessor bridging(tolerant);
+  const DeskewedOutputs outputs = bridging.correct(prepared, mrpt::poses::CPose3D(), sparse);
+  const double angle = -1.0 + 199 * static_cast<double>(0.01f);
+  EXPECT_NEAR(outputs.cloud->points.back().x, 2.0 * std::cos(angle) + 199 * 1e-4, 1e-5);
+}
+
+// A scan without a single return gives an empty cloud, which pcl_ros must serialize into a valid empty
+// PointCloud2 with our six fields (it used to memcpy from a null pointer: found by fuzz_messages).
+TEST(ScanProcessor, EmptyCloudSerializesAsAValidPointCloud2) {
+  ScanProcessor processor(DeskewParams{});
+  auto input = makeScan();
+  input->ranges.assign(200, 0.0f);
+  const DeskewedOutputs outputs =
+      processor.correct(processor.prepare(input), mrpt::poses::CPose3D(), driving());
+  ASSERT_TRUE(outputs.cloud->empty());
+  EXPECT_NE(outputs.cloud->points.data(), nullptr);
+  std::vector<uint8_t> buffer(ros::serialization::serializationLength(*outputs.cloud));
+  ros::serialization::OStream out(buffer.data(), static_cast<uint32_t>(buffer.size()));
+  ros::serialization::serialize(out, *outputs.cloud);
+  sensor_msgs::PointCloud2 message;
+  ros::serialization::IStream in(buffer.data(), static_cast<uint32_t>(buffer.size()));
+  ros::serialization::deserialize(in, message);
+  EXPECT_EQ(message.width * message.height, 0u);
+  EXPECT_TRUE(message.data.empty());
+  ASSERT_EQ(message.fields.size(), 6u);
+  EXPECT_EQ(message.fields[5].name, "index");
+  EXPECT_EQ(message.header.frame_id, "laser");
+}
+
 }  // namespace
 }  // namespace lidar_deskew::ros_adapter

@@ -5,6 +5,8 @@
 #include <mrpt/poses/CPose3D.h>
 #include <Eigen/Geometry>
 
+#include <algorithm>
+#include <iterator>
 #include <vector>
 
 #include "lidar_deskew/core/types.h"
@@ -29,7 +31,27 @@ class MotionSource {
   /// True when the source's motion is linear (lerp + slerp) between the times appendSampleTimes
   /// reports, so knots there reproduce it exactly and no others are needed. Default: false.
   virtual bool sampleTimesComplete() const { return false; }
+
+  /// [ns] The longest interval between consecutive samples of the source that overlaps [begin, end]:
+  /// the source interpolates across it linearly, whatever the robot did meanwhile. 0 for continuous
+  /// sources (the default). Gaps before the first or after the last sample are not counted: there
+  /// the source does not answer at all.
+  virtual TimeNs longestGap(TimeNs /*begin*/, TimeNs /*end*/) const { return 0; }
 };
+
+/// longestGap() over sample times sorted ascending in [first, last); `time_of` gives an element's
+/// time [ns]. Pairs run from the last sample at or before `begin` while a pair starts before `end`.
+template <typename It, typename TimeOf>
+TimeNs longestGapOf(It first, It last, TimeNs begin, TimeNs end, TimeOf time_of) {
+  It it = std::upper_bound(first, last, begin,
+                           [&](TimeNs time, const auto& sample) { return time < time_of(sample); });
+  if (it != first)
+    --it;
+  TimeNs longest = 0;
+  for (; it != last && std::next(it) != last && time_of(*it) < end; ++it)
+    longest = std::max(longest, time_of(*std::next(it)) - time_of(*it));
+  return longest;
+}
 
 /// Interpolates between two poses like tf2 does: translation linearly, rotation by slerp on the
 /// shortest arc. `fraction` in [0, 1]: 0 gives `from`, 1 gives `to`.
@@ -58,6 +80,7 @@ class PoseSamples final : public MotionSource {
   mrpt::poses::CPose3D basePose(TimeNs time) const override;
   void appendSampleTimes(TimeNs begin, TimeNs end, std::vector<TimeNs>& times) const override;
   bool sampleTimesComplete() const override { return true; }
+  TimeNs longestGap(TimeNs begin, TimeNs end) const override;
 
  private:
   struct Sample {

@@ -43,6 +43,8 @@ class LaserScanDeskewNode {
     std::uint64_t dropped_mount = 0;    ///< no transform base_frame -> scan frame
     std::uint64_t dropped_queue = 0;    ///< more than queue_size scans were waiting
     std::uint64_t time_fallbacks = 0;   ///< scans timed by scan_time or scan_period (time_increment 0)
+    std::uint64_t tf_gaps = 0;          ///< refused: tf has a gap longer than max_tf_gap in the sweep
+    std::uint64_t mount_changes = 0;    ///< the mount base_frame -> scan frame changed at run time
     std::uint64_t time_jumps = 0;       ///< time went backwards: tf cache and queue cleared
     double tf_wait_total = 0.0;         ///< [s] arrival to "tf covers the last beam", summed
     double tf_wait_max = 0.0;           ///< [s]
@@ -104,8 +106,8 @@ class LaserScanDeskewNode {
   TfMotionSource motion_;
   ScanProcessor processor_;
   std::deque<Pending> pending_;
-  std::map<std::string, mrpt::poses::CPose3D> mounts_;
-  core::TimeNs newest_base_stamp_ = 0;  // [ns] newest dynamic transform to base_frame
+  std::map<std::string, mrpt::poses::CPose3D> mounts_;  // the last mount of each scan frame
+  core::TimeNs newest_base_stamp_ = 0;                  // [ns] newest dynamic transform to base_frame
   Counters counters_;
   std::vector<double> latencies_;  // [s] ring of the last kLatencies
   std::size_t next_latency_ = 0;

@@ -63,6 +63,7 @@ struct DeskewParams {
   bool exact = false;                    ///< look tf up for every beam (verification, benchmarks)
   double tf_timeout = 0.2;               ///< [s] longest wait for tf to cover a sweep's last beam
   OnTfFailure on_tf_failure = OnTfFailure::kDrop;
+  double max_tf_gap = 0.5;          ///< [s] refuse sweeps tf interpolates across a longer gap; 0 = never
   double max_extrapolation = 0.0;   ///< [s] extrapolate tf this far with the newest velocity; 0 = never
   int queue_size = 10;              ///< scans waiting for tf at most (older ones are dropped)
   double diagnostics_period = 1.0;  ///< [s]

@@ -14,6 +14,12 @@ namespace lidar_deskew::ros_adapter {
 
 using DeskewedCloud = pcl::PointCloud<PointXYZITI>;
 
+/// The motion source interpolates across a gap longer than max_tf_gap within the sweep.
+class TfGapTooLong : public core::MotionUnavailable {
+ public:
+  using core::MotionUnavailable::MotionUnavailable;
+};
+
 /// A scan checked and timed, ready to be corrected once its motion is known.
 struct PreparedScan {
   sensor_msgs::LaserScan::ConstPtr message;
@@ -38,7 +44,8 @@ class ScanProcessor {
   PreparedScan prepare(const sensor_msgs::LaserScan::ConstPtr& message) const;
 
   /// Corrects with `motion` (base in the fixed frame) and `mount` (base -> scan frame), re-bins, and
-  /// builds both messages. Throws core::MotionUnavailable when the motion does not cover the sweep.
+  /// builds both messages. Throws core::MotionUnavailable when the motion does not cover the sweep, and
+  /// TfGapTooLong when it has a gap longer than max_tf_gap there.
   DeskewedOutputs correct(const PreparedScan& prepared, const mrpt::poses::CPose3D& mount,
                           const core::MotionSource& motion);
 

@@ -33,6 +33,8 @@ class TfMotionSource final : public core::MotionSource {
   /// Forgets sample times and what was learnt about the chain (tf cache cleared).
   void clearSampleTimes();
   bool sampleTimesComplete() const override { return direct_link_seen_ && !other_link_seen_; }
+  /// Over the recorded sample times of the chain (for a longer chain, the union of its links' stamps).
+  core::TimeNs longestGap(core::TimeNs begin, core::TimeNs end) const override;
 
   const std::string& fixedFrame() const { return fixed_frame_; }
   const std::string& baseFrame() const { return base_frame_; }
