@@ -37,13 +37,17 @@ driver=$!
 
 tick=$(getconf CLK_TCK)
 samples="$out/samples.csv"
-echo "seconds,rss_kib,cpu_ticks" >"$samples"
+# steal: CPU time the hypervisor gave other guests while this one wanted to run (noisy neighbours).
+echo "seconds,rss_kib,cpu_ticks,driver_ticks,machine_ticks,steal_ticks" >"$samples"
 begin=$(date +%s.%N)
 while kill -0 "$driver" 2>/dev/null; do
   now=$(date +%s.%N)
   rss=$(awk '/^VmRSS/ {print $2}' "/proc/$manager/status")
   ticks=$(awk '{print $14 + $15}' "/proc/$manager/stat")
-  printf '%.1f,%s,%s\n' "$(echo "$now - $begin" | bc)" "$rss" "$ticks" >>"$samples"
+  driver_ticks=$(awk '{print $14 + $15}' "/proc/$driver/stat" 2>/dev/null || echo 0)
+  machine=$(awk '/^cpu / {print $2 + $3 + $4 + $5 + $6 + $7 + $8 + $9, $9}' /proc/stat)
+  printf '%.1f,%s,%s,%s,%s,%s\n' "$(echo "$now - $begin" | bc)" "$rss" "$ticks" "$driver_ticks" \
+    "${machine% *}" "${machine#* }" >>"$samples"
   sleep 10
 done
 wait "$driver" || { echo "soak: the driver failed:" >&2; cat "$out/driver.log" >&2; exit 1; }
@@ -52,7 +56,7 @@ echo "soak: ${seconds} s, one nodelet manager (pid $manager), samples in $sample
 awk -F, -v warmup="$warmup" -v tick="$tick" '
   BEGIN { n = 0 }
   NR == 1 { next }
-  { t[n] = $1; rss[n] = $2; cpu[n] = $3; n++ }
+  { t[n] = $1; rss[n] = $2; cpu[n] = $3; drv[n] = $4; all[n] = $5; steal[n] = $6; n++ }
   END {
     w = 0; while (w < n - 1 && t[w] < warmup) w++;
     printf "  RSS at start %d KiB, after warm-up (%.0f s) %d KiB, at the end (%.0f s) %d KiB\n", rss[0], t[w], rss[w], t[n-1], rss[n-1];
@@ -60,5 +64,9 @@ awk -F, -v warmup="$warmup" -v tick="$tick" '
     max = 0; for (i = w; i < n; i++) if (rss[i] > max) max = rss[i];
     printf "  RSS max after warm-up: %d KiB\n", max;
     printf "  CPU of the manager after warm-up: %.1f %% of one core\n", 100 * (cpu[n-1] - cpu[w]) / tick / (t[n-1] - t[w]);
+    printf "  CPU of the driver (tf, scans, output subscriber): %.1f %% of one core\n", 100 * (drv[n-2] - drv[0]) / tick / (t[n-2] - t[0]);
+    printf "  steal (CPU taken by other guests of the host): %.1f %% of this machine over the run\n", 100 * (steal[n-1] - steal[0]) / (all[n-1] - all[0]);
+    worst = 0; for (i = 1; i < n; i++) { d = (steal[i] - steal[i-1]) / (all[i] - all[i-1]); if (d > worst) worst = d }
+    printf "  steal in the worst 10 s: %.1f %%\n", 100 * worst;
   }' "$samples"
 cat "$out/driver.log"

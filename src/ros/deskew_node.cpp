@@ -16,6 +16,9 @@ std::atomic<const void*> last_published_cloud{nullptr};
 /// A time jump backwards larger than this (bag loop, /clock reset) clears the tf cache and the queue.
 const core::TimeNs kTimeJumpNs = 1'000'000'000;
 
+/// [s] The timer that expires scans waiting for tf longer than tf_timeout.
+constexpr double kTimerPeriod = 0.02;
+
 /// Scans over which the latency percentile is taken.
 constexpr std::size_t kLatencies = 1000;
 
@@ -62,7 +65,7 @@ LaserScanDeskewNode::LaserScanDeskewNode(ros::NodeHandle nh, ros::NodeHandle pri
       buffer_(ros::Duration(10.0)),
       motion_(buffer_, params_.fixed_frame, params_.base_frame),
       processor_(params_) {
-  last_diagnostics_ = ros::WallTime::now();
+  last_diagnostics_ = last_tick_ = running_since_ = ros::WallTime::now();
   private_nh_.setParam("diagnostic_period", params_.diagnostics_period);  // read by the Updater
   diagnostics_ = std::make_unique<diagnostic_updater::Updater>(nh_, private_nh_, name_);
   diagnostics_->setHardwareID("none");
@@ -85,7 +88,7 @@ LaserScanDeskewNode::LaserScanDeskewNode(ros::NodeHandle nh, ros::NodeHandle pri
     scan_publisher_ = nh_.advertise<sensor_msgs::LaserScan>("scan_deskewed", 10, connect, connect);
     cloud_publisher_ = nh_.advertise<DeskewedCloud>("scan_deskewed_points", 10, connect, connect);
   }
-  timer_ = nh_.createWallTimer(ros::WallDuration(0.02), &LaserScanDeskewNode::timerCallback, this);
+  timer_ = nh_.createWallTimer(ros::WallDuration(kTimerPeriod), &LaserScanDeskewNode::timerCallback, this);
   const std::string mode = params_.exact
                                ? "exact per-beam lookups"
                                : "knots every " + std::to_string(params_.deskew.knot_interval) + " s";
@@ -221,9 +224,16 @@ void LaserScanDeskewNode::timerCallback(const ros::WallTimerEvent& /*event*/) {
   {
     std::lock_guard<std::mutex> lock(mutex_);
     const ros::WallTime now = ros::WallTime::now();
+    // After a stall of this process (descheduled, swapped out, stopped), tf that came meanwhile may
+    // not have been read yet: expire nothing until it has run for two timer periods again, so that
+    // our own stall is never taken for tf being late.
+    if ((now - last_tick_).toSec() > 2 * kTimerPeriod)
+      running_since_ = now;
+    last_tick_ = now;
+    const bool settled = (now - running_since_).toSec() >= 2 * kTimerPeriod;
     try {
       processReady(now);
-      while (!pending_.empty() && (now - pending_.front().arrival).toSec() > params_.tf_timeout) {
+      while (settled && !pending_.empty() && (now - pending_.front().arrival).toSec() > params_.tf_timeout) {
         const Pending expired = std::move(pending_.front());
         pending_.pop_front();
         const std::string& frame = expired.prepared.message->header.frame_id;

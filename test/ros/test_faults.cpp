@@ -4,6 +4,9 @@
 
 #include <std_msgs/UInt32.h>
 
+#include <signal.h>
+#include <sys/types.h>
+
 #include <algorithm>
 #include <cstdio>
 
@@ -215,6 +218,44 @@ TEST(Faults, StaticParentOfTheBaseIsIgnored) {
   double worst = 0.0;
   EXPECT_EQ(playCovered(rig, 135.0, 3, &worst), 3);
   EXPECT_LT(worst, 2e-3);
+}
+
+/// The pid of the deskew node launched by faults.test (0 when not found).
+pid_t deskewPid() {
+  FILE* pgrep = popen("pgrep -f '[_]_name:=lidar_deskew'", "r");  // [_]: not this shell itself
+  int pid = 0;
+  if (pgrep) {
+    if (std::fscanf(pgrep, "%d", &pid) != 1)
+      pid = 0;
+    pclose(pgrep);
+  }
+  return pid;
+}
+
+// The deskew itself stalls (SIGSTOP for 0.5 s, longer than tf_timeout: descheduled by an overloaded
+// host, swapped out) while the tf its waiting scan needs arrives. After the stall that tf is read and
+// the scan corrected: the node's own stall is not taken for tf being late.
+TEST(Faults, OwnStallIsNotTakenForLateTf) {
+  LiveRig rig;
+  ASSERT_TRUE(rig.connect());
+  const pid_t pid = deskewPid();
+  ASSERT_GT(pid, 0);
+  ASSERT_TRUE(rig.waitFor([&] { return !rig.diagnostic("dropped: tf").empty(); }, 5.0));
+  const double dropped_tf = rig.diagnosticNumber("dropped: tf");
+  for (int k = 0; k < 5; ++k) {
+    const double t = 150.0 + 0.1 * k;
+    rig.publishTfUntil(t);
+    rig.publishScan(t);
+    rig.waitFor([] { return false; }, 0.05);  // the scan is read and waits for tf
+    ASSERT_EQ(kill(pid, SIGSTOP), 0);
+    rig.publishTfUntil(t + kScanPeriod + 0.02);
+    ros::WallDuration(0.5).sleep();
+    ASSERT_EQ(kill(pid, SIGCONT), 0);
+    sensor_msgs::LaserScan::ConstPtr scan;
+    sensor_msgs::PointCloud2::ConstPtr cloud;
+    EXPECT_TRUE(rig.waitForOutputs(rig.stampOf(t), 5.0, scan, cloud)) << "stall " << k;
+  }
+  EXPECT_TRUE(diagnosticReaches(rig, "dropped: tf", dropped_tf));
 }
 
 // A subscriber that takes 0.5 s per message (its socket fills up): every scan still reaches the other

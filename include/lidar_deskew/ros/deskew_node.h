@@ -113,6 +113,8 @@ class LaserScanDeskewNode {
   std::size_t next_latency_ = 0;
   Counters counters_at_last_diagnostics_;
   ros::WallTime last_diagnostics_;
+  ros::WallTime last_tick_;      // the timer's last run
+  ros::WallTime running_since_;  // the end of the last stall of this process
 
   ros::Publisher scan_publisher_;
   ros::Publisher cloud_publisher_;
