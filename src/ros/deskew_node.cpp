@@ -5,6 +5,7 @@
 #include <tf2/exceptions.h>
 
 #include <atomic>
+#include <cstdio>
 
 #include "lidar_deskew/ros/conversions.h"
 
@@ -324,11 +325,16 @@ bool LaserScanDeskewNode::lookupMount(const std::string& frame, mrpt::poses::CPo
   }
   if (known != mounts_.end() && samePose(known->second, mount))
     return true;
-  if (known != mounts_.end())
-    ++counters_.mount_changes;
-  ROS_INFO("%s: mount %s -> %s%s: x %.3f y %.3f z %.3f m, yaw %.4f pitch %.4f roll %.4f rad", name_.c_str(),
-           params_.base_frame.c_str(), frame.c_str(), known != mounts_.end() ? " changed" : "", mount.x(),
-           mount.y(), mount.z(), mount.yaw(), mount.pitch(), mount.roll());
+  char text[160];
+  std::snprintf(text, sizeof text, "%s -> %s: x %.3f y %.3f z %.3f m, yaw %.4f pitch %.4f roll %.4f rad",
+                params_.base_frame.c_str(), frame.c_str(), mount.x(), mount.y(), mount.z(), mount.yaw(),
+                mount.pitch(), mount.roll());
+  if (known == mounts_.end()) {
+    ROS_INFO("%s: mount %s", name_.c_str(), text);
+  } else {
+    ++counters_.mount_changes;  // a mount moving on /tf changes often: log at most every 5 s
+    ROS_INFO_THROTTLE(5.0, "%s: mount changed (counted in diagnostics): %s", name_.c_str(), text);
+  }
   mounts_[frame] = mount;
   return true;
 }
