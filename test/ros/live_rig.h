@@ -49,6 +49,10 @@ class LiveRig {
 
   /// Spins until `done` or `timeout` [s]; returns done().
   bool waitFor(const std::function<bool()>& done, double timeout);
+  /// Spins (handles this process's callbacks) for `seconds`.
+  void spinFor(double seconds) {
+    waitFor([] { return false; }, seconds);
+  }
   /// The outputs stamped `stamp`, when both arrived within `timeout` [s].
   bool waitForOutputs(const ros::Time& stamp, double timeout, sensor_msgs::LaserScan::ConstPtr& scan,
                       sensor_msgs::PointCloud2::ConstPtr& cloud);
