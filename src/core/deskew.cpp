@@ -12,6 +12,9 @@ namespace {
 
 /// Smallest knot interval accepted [s]: bounds the knot count to 1e5 per second of sweep.
 constexpr double kMinKnotInterval = 1e-5;
+/// [s] Longer knot intervals would overflow the knot loop's time arithmetic and make no sense: a sweep
+/// lasts at most max_sweep_duration.
+constexpr double kMaxKnotInterval = 1.0;
 
 /// sin(x) and 1 - cos(x), exact to double precision (relative error < 1e-16). Short Taylor series
 /// for the small angles knots give (5 rad/s over 5 ms is 0.025 rad), the library beyond. Series
@@ -68,8 +71,9 @@ class ExactChain {
 void KnotTrajectory::build(TimeNs origin, double span_begin, double span_end, TimeNs reference_time,
                            double knot_interval, const mrpt::poses::CPose3D& mount,
                            const MotionSource& motion) {
-  if (!(knot_interval >= kMinKnotInterval)) {
-    throw InvalidInput("knot_interval", "must be >= " + std::to_string(kMinKnotInterval) + " s here");
+  if (!(knot_interval >= kMinKnotInterval && knot_interval <= kMaxKnotInterval)) {
+    throw InvalidInput("knot_interval", "must be in [" + std::to_string(kMinKnotInterval) + ", " +
+                                            std::to_string(kMaxKnotInterval) + "] s here");
   }
   if (!(span_end >= span_begin))
     throw InvalidInput("time_offset", "span end before span begin");
@@ -251,9 +255,10 @@ void KnotTrajectory::correctPlanarScan(const PlanarScan& scan, double beam_perio
 
 void DeskewConfig::validate() const {
   if (!std::isfinite(knot_interval) || knot_interval < 0.0 ||
-      (knot_interval > 0.0 && knot_interval < kMinKnotInterval)) {
-    throw InvalidInput("knot_interval", "must be 0 (exact) or >= " + std::to_string(kMinKnotInterval) +
-                                            " s, got " + std::to_string(knot_interval));
+      (knot_interval > 0.0 && (knot_interval < kMinKnotInterval || knot_interval > kMaxKnotInterval))) {
+    throw InvalidInput("knot_interval", "must be 0 (exact) or in [" + std::to_string(kMinKnotInterval) +
+                                            ", " + std::to_string(kMaxKnotInterval) + "] s, got " +
+                                            std::to_string(knot_interval));
   }
 }
 

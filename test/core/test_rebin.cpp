@@ -1,4 +1,4 @@
-// Re-binning onto the input grid as rays (DESIGN §4), against closed-form geometry. Tolerances in mm.
+// Re-binning onto the input grid as rays (docs/DESIGN.md §4), against closed-form geometry. Tolerances in mm.
 #include <gtest/gtest.h>
 
 #include <cmath>

@@ -1,4 +1,4 @@
-// The timing model (DESIGN §2): per-beam times from the message fields and the fallbacks.
+// The timing model (docs/DESIGN.md §4): per-beam times from the message fields and the fallbacks.
 #include <gtest/gtest.h>
 
 #include <cmath>

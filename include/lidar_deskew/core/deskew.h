@@ -1,5 +1,5 @@
-// The correction of paper eq. 1-7 (DESIGN §1, §3): every beam re-expressed in the laser frame at the
-// reference time.
+// The correction of paper eq. 1-7 (docs/DESIGN.md §4 conventions, §5 knots): every beam re-expressed in the
+// laser frame at the reference time.
 //
 //   ^L P = ( ^L T_R  (+)  ^R T_R'(t_i)  (+)  ^R' T_L' ) . ^L' P
 //
@@ -28,7 +28,7 @@ struct DeskewConfig {
   /// 0 = exact mode: one motion query and one MRPT composition per beam (for verification).
   double knot_interval = 0.005;
 
-  /// Throws InvalidInput("knot_interval") when negative or not finite.
+  /// Throws InvalidInput("knot_interval") when negative, not finite, or outside [1e-5, 1] s (0 = exact).
   void validate() const;
 };
 

@@ -1,4 +1,4 @@
-// Where the robot base was: the motion source interface and a sampled implementation (DESIGN §3).
+// Where the robot base was: the motion source interface and a sampled implementation (docs/DESIGN.md §5).
 #pragma once
 
 #include <mrpt/poses/CPose2D.h>

@@ -1,5 +1,5 @@
-// Re-binning a corrected scan onto the input's own angle grid, as rays (DESIGN §4): gmapping, AMCL and
-// costmaps need a LaserScan with a fixed grid and beam count.
+// Re-binning a corrected scan onto the input's own angle grid, as rays (docs/DESIGN.md §4): gmapping, AMCL
+// and costmaps need a LaserScan with a fixed grid and beam count.
 #pragma once
 
 #include <cstddef>
@@ -60,7 +60,39 @@ class ScanRebinner {
   void rebin(const DeskewedScan& corrected, const AngleGrid& grid, float no_return, RebinnedScan& out);
 
  private:
+  class BinSweep;  // finds the bins whose rays lie in an angle interval (defined in rebin.cpp)
+  using Points = std::vector<DeskewedPoint>;
+
+  // The steps of rebin(), in order (checking the grid is a file-local function in rebin.cpp).
+  /// Recomputes ray_cos_ / ray_sin_ when `grid` differs from the one they were computed for.
   void updateRays(const AngleGrid& grid);
+  /// Starts every bin of the scan with no crossing: range +inf, intensity 0.
+  void clearBins(std::size_t bin_count);
+  /// Fills point_range_ / point_bearing_ with the points' polar form; throws InvalidInput("points") for a
+  /// non-finite point.
+  void computePolarPoints(const Points& points);
+  /// Fills linked_to_next_: which consecutive points (beam indices i, i+1; for a full-circle grid also
+  /// n-1, 0) are close enough to form a contour segment.
+  void linkContourNeighbours(const Points& points, const BinSweep& sweep);
+  /// Offers every bin the crossings of its ray with the contours: their segments, their ends extended by
+  /// half a bin, and lone points as facets facing the sensor.
+  void traceContours(const Points& points, const BinSweep& sweep);
+  /// Writes the nearest crossing of every bin to `out`, `no_return` where none crossed.
+  void writeNearestCrossings(bool has_intensities, float no_return, RebinnedScan& out) const;
+
+  // Used by the steps; inline (defined and used only in rebin.cpp) to keep the per-bin loops in one piece.
+  /// [m] the RebinConfig gap for points a and b (at the larger of their ranges; a == b for a lone point).
+  inline double joinGap(std::size_t a, std::size_t b, double abs_increment) const;
+  /// Whether points a and b are close enough to be on one surface (the larger range sets the gap).
+  inline bool joined(const Points& points, std::size_t a, std::size_t b, double abs_increment) const;
+  /// Contour segment a -> b: offers every bin whose ray crosses it, intensity interpolated along it.
+  inline void crossSegment(const Points& points, std::size_t a, std::size_t b, const BinSweep& sweep);
+  /// Contour end (or lone point) p: offers the bins within half a bin of p's bearing where their ray meets
+  /// the line through p along (dx, dy), no farther than `reach` [m] from p.
+  inline void extendEnd(const Points& points, std::size_t p, double dx, double dy, double reach,
+                        const BinSweep& sweep);
+  /// Keeps `range` [m] and `intensity` for `bin` when nearer than what the bin has so far.
+  inline void offer(std::size_t bin, double range, float intensity);
 
   RebinConfig config_;
   AngleGrid rays_grid_;

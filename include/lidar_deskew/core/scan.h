@@ -1,4 +1,4 @@
-// A planar LIDAR scan without ROS, and its timing model (DESIGN §2).
+// A planar LIDAR scan without ROS, and its timing model (docs/DESIGN.md §4).
 #pragma once
 
 #include <algorithm>
@@ -86,7 +86,7 @@ struct BeamTiming {
 /// empty nor one per range.
 void validateScan(const PlanarScan& scan);
 
-/// Resolves the per-beam times of a validated scan (DESIGN §2). With time_increment = 0, a rotating
+/// Resolves the per-beam times of a validated scan (docs/DESIGN.md §4). With time_increment = 0, a rotating
 /// sensor turns 2pi per scan_time, so beams are scan_time * |angle_increment| / 2pi apart (this is
 /// scan_time / beams for a 360 deg sensor, and stays right for a 270 deg one); else the same with
 /// config.scan_period. Throws InvalidInput("time_increment") when no fallback applies, or when the
