@@ -1,7 +1,11 @@
 #include "lidar_deskew/ros/conversions.h"
 
+#include <mrpt/math/CMatrixFixed.h>
 #include <mrpt/ros1bridge/pose.h>
 #include <tf2/LinearMath/Transform.h>
+#include <Eigen/Dense>
+
+#include <cstdio>
 
 namespace lidar_deskew::ros_adapter {
 
@@ -39,6 +43,23 @@ geometry_msgs::Transform toTransform(const mrpt::poses::CPose3D& pose) {
   transform.rotation.z = rotation.z();
   transform.rotation.w = rotation.w();
   return transform;
+}
+
+std::string normalizedFrame(const std::string& frame_id) {
+  return !frame_id.empty() && frame_id.front() == '/' ? frame_id.substr(1) : frame_id;
+}
+
+std::string describePose(const mrpt::poses::CPose3D& pose) {
+  char text[128];
+  std::snprintf(text, sizeof text, "x %.3f y %.3f z %.3f m, yaw %.4f pitch %.4f roll %.4f rad", pose.x(),
+                pose.y(), pose.z(), pose.yaw(), pose.pitch(), pose.roll());
+  return text;
+}
+
+bool samePose(const mrpt::poses::CPose3D& a, const mrpt::poses::CPose3D& b) {
+  const auto difference = a.getHomogeneousMatrixVal<mrpt::math::CMatrixDouble44>().asEigen() -
+                          b.getHomogeneousMatrixVal<mrpt::math::CMatrixDouble44>().asEigen();
+  return difference.cwiseAbs().maxCoeff() <= 1e-9;
 }
 
 }  // namespace lidar_deskew::ros_adapter

@@ -13,7 +13,7 @@ mrpt::poses::CPose3D TfMotionSource::basePose(core::TimeNs time) const {
     throw core::MotionUnavailable(time, "time outside the range of ROS time");
   }
   try {
-    return toPose(buffer_.lookupTransform(fixed_frame_, base_frame_, toRosTime(time)).transform);
+    return toPose(buffer_->lookupTransform(fixed_frame_, base_frame_, toRosTime(time)).transform);
   } catch (const tf2::TransformException& error) {
     throw core::MotionUnavailable(time, error.what());
   }
@@ -31,21 +31,6 @@ core::TimeNs TfMotionSource::longestGap(core::TimeNs begin, core::TimeNs end) co
                             [](core::TimeNs time) { return time; });
 }
 
-void TfMotionSource::observe(const geometry_msgs::TransformStamped& transform) {
-  const bool from_fixed = transform.header.frame_id == fixed_frame_;
-  const bool to_base = transform.child_frame_id == base_frame_;
-  if (to_base)
-    (from_fixed ? direct_link_seen_ : other_link_seen_) = true;
-  if (to_base || from_fixed)
-    addSampleTime(toNs(transform.header.stamp));
-}
-
-void TfMotionSource::clearSampleTimes() {
-  sample_times_.clear();
-  direct_link_seen_ = false;
-  other_link_seen_ = false;
-}
-
 void TfMotionSource::addSampleTime(core::TimeNs time) {
   if (sample_times_.empty() || time > sample_times_.back()) {
     sample_times_.push_back(time);
@@ -54,7 +39,7 @@ void TfMotionSource::addSampleTime(core::TimeNs time) {
     if (it == sample_times_.end() || *it != time)
       sample_times_.insert(it, time);
   }
-  while (sample_times_.size() > kCapacity)
+  while (sample_times_.back() - sample_times_.front() > retention_)
     sample_times_.pop_front();
 }
 

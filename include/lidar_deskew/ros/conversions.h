@@ -6,6 +6,8 @@
 #include <ros/time.h>
 #include <sensor_msgs/LaserScan.h>
 
+#include <string>
+
 #include "lidar_deskew/core/scan.h"
 
 namespace lidar_deskew::ros_adapter {
@@ -28,5 +30,14 @@ mrpt::poses::CPose3D toPose(const geometry_msgs::Transform& transform);
 
 /// An MRPT pose as a tf transform.
 geometry_msgs::Transform toTransform(const mrpt::poses::CPose3D& pose);
+
+/// A frame id as tf2 looks it up: without a leading '/' (tf2_ros's MessageFilter does the same).
+std::string normalizedFrame(const std::string& frame_id);
+
+/// "x 0.100 y 0.000 z 0.200 m, yaw 0.0000 pitch 0.0000 roll 0.0000 rad": a pose for log lines.
+std::string describePose(const mrpt::poses::CPose3D& pose);
+
+/// Equal to 1e-9 in every entry of the homogeneous matrix: a re-published but unchanged transform.
+bool samePose(const mrpt::poses::CPose3D& a, const mrpt::poses::CPose3D& b);
 
 }  // namespace lidar_deskew::ros_adapter

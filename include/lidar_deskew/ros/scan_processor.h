@@ -7,7 +7,7 @@
 
 #include "lidar_deskew/core/deskew.h"
 #include "lidar_deskew/core/rebin.h"
-#include "lidar_deskew/ros/params.h"
+#include "lidar_deskew/ros/deskew_params.h"
 #include "lidar_deskew/ros/point_types.h"
 
 namespace lidar_deskew::ros_adapter {

@@ -1,0 +1,118 @@
+// The per-scan pipeline of the live node and deskew_bag (docs/DESIGN.md §2): tf and
+// scans in, in arrival order; each scan waits until tf covers its last beam, then is corrected (or
+// dropped / passed through) and handed to the owner. Waiting is measured on a clock the owner gives:
+// wall time live, record time offline.
+#pragma once
+
+#include <geometry_msgs/TransformStamped.h>
+#include <sensor_msgs/LaserScan.h>
+
+#include <cstdint>
+#include <deque>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "lidar_deskew/ros/deskew_params.h"
+#include "lidar_deskew/ros/scan_processor.h"
+#include "lidar_deskew/ros/tf_feed.h"
+
+namespace lidar_deskew::ros_adapter {
+
+/// What happened to the scans; the node's diagnostics and deskew_bag's summary show these.
+struct PipelineCounters {
+  std::uint64_t received = 0;
+  std::uint64_t published = 0;        ///< corrected scans
+  std::uint64_t passed_through = 0;   ///< published uncorrected (on_tf_failure: pass_through)
+  std::uint64_t extrapolated = 0;     ///< corrected with tf extrapolated up to max_extrapolation
+  std::uint64_t dropped_invalid = 0;  ///< malformed scans
+  std::uint64_t dropped_tf = 0;       ///< tf did not cover the sweep within tf_timeout
+  std::uint64_t dropped_mount = 0;    ///< no transform base_frame -> scan frame
+  std::uint64_t dropped_queue = 0;    ///< more than queue_size scans were waiting
+  std::uint64_t time_fallbacks = 0;   ///< scans timed by scan_time or scan_period (time_increment 0)
+  std::uint64_t tf_gaps = 0;          ///< refused: tf has a gap longer than max_tf_gap in the sweep
+  std::uint64_t mount_changes = 0;    ///< the mount base_frame -> scan frame changed
+  std::uint64_t time_jumps = 0;       ///< time went backwards: tf cache and queue cleared
+  std::uint64_t statics_ignored = 0;  ///< /tf_static parents of moving frames left out
+};
+
+/// The counters by the names the node's diagnostics and deskew_bag's summary both show them.
+std::vector<std::pair<std::string, std::uint64_t>> namedCounters(const PipelineCounters& counters);
+
+/// Everything the pipeline has to say, by kind: the owner logs (throttled) or prints it.
+enum class PipelineEvent {
+  kMalformed,      ///< a scan was dropped as malformed (error)
+  kTimeFallback,   ///< the first scan timed without time_increment (warning, once)
+  kQueueFull,      ///< the oldest waiting scan was dropped (warning)
+  kTfFailure,      ///< a scan was dropped or passed through: tf did not cover it (warning)
+  kMountMissing,   ///< a scan was dropped: no mount (error)
+  kMountFirst,     ///< the first mount of a scan frame (info)
+  kMountChanged,   ///< the mount changed (info)
+  kStaticIgnored,  ///< a /tf_static parent of a moving frame left out (warning, once per frame)
+  kTimeJump,       ///< time went backwards (warning)
+  kBadTransform,   ///< a transform was refused (warning)
+};
+
+/// A scan's outputs, handed to the owner.
+struct PipelineResult {
+  sensor_msgs::LaserScan::ConstPtr input;  ///< the scan as it arrived
+  DeskewedOutputs outputs;
+  bool corrected = false;   ///< false: passed through uncorrected
+  double waited = 0.0;      ///< [s] on the owner's clock, from arrival until tf covered it
+  double correction = 0.0;  ///< [s] wall time spent correcting and building the messages
+  double arrival = 0.0;     ///< [s] the scan's arrival on the owner's clock
+};
+
+/// Not thread-safe: the owner serialises calls.
+class ScanPipeline {
+ public:
+  using Publish = std::function<void(const PipelineResult&)>;
+  using Report = std::function<void(PipelineEvent, const std::string&)>;
+
+  /// Throws core::InvalidInput for invalid parameters. `tf_cache_time` [s] of dynamic tf kept.
+  ScanPipeline(const DeskewParams& params, Publish publish, Report report, double tf_cache_time = 10.0);
+
+  /// Transforms from /tf or /tf_static at `now` [s]; serves the scans they complete.
+  void addTransforms(const std::vector<geometry_msgs::TransformStamped>& transforms, bool is_static,
+                     double now);
+  /// A scan arriving at `now` [s]: checked, queued, served if tf already covers it.
+  void addScan(const sensor_msgs::LaserScan::ConstPtr& message, double now);
+  /// Serves the scans tf covers, in arrival order (a waiting scan holds back those behind it).
+  void serveReady(double now);
+  /// Fails (drop or pass through) the scans that have waited longer than tf_timeout at `now` [s].
+  void expire(double now);
+  /// Fails every waiting scan (nothing more will come: the end of a bag).
+  void flush();
+
+  /// Replaces the receiver of the outputs.
+  void setPublish(Publish publish) { publish_ = std::move(publish); }
+
+  const PipelineCounters& counters() const { return counters_; }
+  std::size_t waiting() const { return pending_.size(); }
+  const DeskewParams& params() const { return params_; }
+  const TfFeed& tf() const { return tf_; }
+
+ private:
+  struct Pending {
+    PreparedScan prepared;
+    std::string frame;  // normalised frame id
+    double arrival = 0.0;
+  };
+
+  bool ready(const Pending& pending, bool& extrapolate) const;
+  void correct(const Pending& pending, bool extrapolate, double now);
+  void fail(const Pending& pending, const std::string& reason);
+  void onTfEvent(TfEvent event, const std::string& text);
+
+  DeskewParams params_;
+  Publish publish_;
+  Report report_;
+  TfFeed tf_;
+  ScanProcessor processor_;
+  std::deque<Pending> pending_;
+  PipelineCounters counters_;
+};
+
+std::string toString(PipelineEvent event);
+
+}  // namespace lidar_deskew::ros_adapter

@@ -1,0 +1,88 @@
+// The one tf policy of the live node and deskew_bag (docs/DESIGN.md §3): which transforms
+// go into the buffer, when time went backwards, and which mount serves a scan.
+#pragma once
+
+#include <geometry_msgs/TransformStamped.h>
+#include <mrpt/poses/CPose3D.h>
+#include <tf2/buffer_core.h>
+
+#include <functional>
+#include <map>
+#include <memory>
+#include <optional>
+#include <set>
+#include <string>
+
+#include "lidar_deskew/core/types.h"
+#include "lidar_deskew/ros/tf_motion.h"
+
+namespace lidar_deskew::ros_adapter {
+
+/// What the feed tells its owner (who logs and counts it).
+enum class TfEvent {
+  kStaticIgnored,  ///< a /tf_static parent of a frame that moves on /tf was left out (once per frame)
+  kTimeJump,       ///< the chain's stamps went back by more than 1 s: the tf cache was cleared
+  kBadTransform,   ///< a transform tf2 would refuse (empty or equal frames, non-finite values)
+  kMountFirst,     ///< the first mount of a scan frame
+  kMountChanged,   ///< the mount of a scan frame changed
+};
+
+/// Owns the tf2 buffer that answers fixed_frame -> base_frame and the mounts. Frame ids are normalised
+/// (a leading '/' dropped) everywhere. Rules, the same live and offline:
+/// - A frame that is the child of a /tf (dynamic) transform moves: a /tf_static parent of it is left
+///   out, whichever came first (tf2 would otherwise answer one pose for all times). Statics of frames
+///   that do not move on /tf (REP-105's base_footprint -> base_link under a moving base_footprint, a
+///   mount through a plate) are kept.
+/// - Dynamic transforms of the fixed -> base chain whose stamp is more than 1 s older than the chain's
+///   newest one mean time went backwards (a bag loop, a /clock reset): the dynamic cache is cleared.
+/// - The mount base_frame -> scan frame is the newest tf has (any chain, identity when the scan frame
+///   is the base frame); kept when a time jump clears it.
+/// Not thread-safe.
+class TfFeed {
+ public:
+  using Notify = std::function<void(TfEvent, const std::string&)>;
+
+  /// `cache_time` [s]: how much dynamic tf history is kept.
+  TfFeed(const std::string& fixed_frame, const std::string& base_frame, double cache_time, Notify notify);
+
+  /// Adds one transform from /tf (is_static false) or /tf_static. Returns false when time went
+  /// backwards and the dynamic cache was cleared before this transform was added.
+  bool add(const geometry_msgs::TransformStamped& transform, bool is_static);
+
+  /// True when tf answers fixed -> base at both times [ns].
+  bool covers(core::TimeNs first, core::TimeNs last) const;
+  /// [ns] The newest time tf answers fixed -> base at; 0 when it answers none.
+  core::TimeNs newestChainTime() const;
+  /// True when a mount for `frame` (normalised) is known or tf has one.
+  bool mountKnown(const std::string& frame) const;
+  /// The mount of `frame` (normalised), reporting the first one and changes; nullopt with `error` set
+  /// when tf has none.
+  std::optional<mrpt::poses::CPose3D> mount(const std::string& frame, std::string& error);
+
+  const TfMotionSource& motion() const { return motion_; }
+  const tf2::BufferCore& buffer() const { return *buffer_; }
+  /// For readers that take a mutable buffer (laser_geometry); add transforms through add() only.
+  tf2::BufferCore& buffer() { return *buffer_; }
+  const std::string& fixedFrame() const { return fixed_frame_; }
+  const std::string& baseFrame() const { return base_frame_; }
+
+ private:
+  void rebuildWithout(const std::string& child);
+  std::set<std::string> chainChildren() const;
+  void notify(TfEvent event, const std::string& text) const;
+
+  std::string fixed_frame_;
+  std::string base_frame_;
+  ros::Duration cache_time_;
+  Notify notify_;
+  std::unique_ptr<tf2::BufferCore> buffer_;
+  TfMotionSource motion_;
+  std::map<std::string, geometry_msgs::TransformStamped> statics_;  // child -> the static kept for it
+  std::map<std::string, std::string> parents_;                      // child -> parent, as last seen
+  std::set<std::string> moving_;                                    // children of dynamic transforms
+  std::set<std::string> ignored_statics_;               // children whose static parent was reported left out
+  core::TimeNs newest_chain_stamp_ = 0;                 // [ns] of a dynamic transform on the chain
+  std::map<std::string, mrpt::poses::CPose3D> mounts_;  // the last mount of each scan frame
+};
+
+}  // namespace lidar_deskew::ros_adapter

@@ -1,0 +1,187 @@
+#include "lidar_deskew/ros/deskew_params.h"
+
+#include <climits>
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <cstdlib>
+#include <iterator>
+#include <stdexcept>
+
+#include "lidar_deskew/ros/conversions.h"
+
+namespace lidar_deskew::ros_adapter {
+namespace {
+
+constexpr double kNoBound = 0.0;
+
+// The one table of parameters: name, type, default, unit, min, max, min exclusive, choices, live only,
+// meaning. Bounds are inclusive unless min is exclusive; strings with choices take one of them.
+const ParamSpec kSpecs[] = {
+    {"fixed_frame", "string", "odom", "", kNoBound, kNoBound, false, "", false, "frame the base moves in"},
+    {"base_frame", "string", "base_link", "", kNoBound, kNoBound, false, "", false,
+     "the robot base; the mount is base_frame -> scan frame"},
+    {"reference", "string", "start", "", kNoBound, kNoBound, false, "start|middle|end", false,
+     "time every point is re-expressed at; outputs are stamped with it"},
+    {"stamp_at", "string", "start", "", kNoBound, kNoBound, false, "start|end", false,
+     "which beam header.stamp refers to"},
+    {"scan_period", "double", "0.0", "s", 0.0, 60.0, false, "", false,
+     "revolution time when time_increment and scan_time are 0; 0 = none"},
+    {"max_sweep_duration", "double", "1.0", "s", 0.0, 60.0, true, "", false, "longer sweeps are malformed"},
+    {"knot_interval", "double", "0.005", "s", 1e-5, 1.0, false, "", false,
+     "spacing of tf lookups across the sweep (plus tf's own sample times)"},
+    {"exact", "bool", "false", "", kNoBound, kNoBound, false, "", false,
+     "one tf lookup per beam (verification, benchmarks)"},
+    {"tf_timeout", "double", "0.2", "s", 0.0, 60.0, false, "", false,
+     "longest wait for tf to cover a sweep's last beam (offline: in record time)"},
+    {"on_tf_failure", "string", "drop", "", kNoBound, kNoBound, false, "drop|pass_through", false,
+     "what happens to a scan tf does not cover"},
+    {"max_tf_gap", "double", "0.5", "s", 0.0, 60.0, false, "", false,
+     "refuse sweeps tf interpolates across a longer gap; 0 = never"},
+    {"max_extrapolation", "double", "0.0", "s", 0.0, 1.0, false, "", true,
+     "extrapolate tf with the newest velocity at most this long; 0 = never"},
+    {"queue_size", "int", "10", "scans", 1.0, 100000.0, false, "", false, "scans waiting for tf at most"},
+    {"rebin_min_gap", "double", "0.05", "m", 0.0, 100.0, false, "", false,
+     "contour join distance, constant part"},
+    {"rebin_gap_factor", "double", "5.0", "", 0.0, 1000.0, false, "", false,
+     "contour join distance per (range x angle increment)"},
+    {"diagnostics_period", "double", "1.0", "s", 0.0, 3600.0, true, "", true, "period of /diagnostics"},
+};
+
+const ParamSpec& specOf(const std::string& name) {
+  for (const ParamSpec& spec : kSpecs) {
+    if (name == spec.name)
+      return spec;
+  }
+  throw std::logic_error("no parameter " + name);
+}
+
+std::string number(double value) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%g", value);
+  return text;
+}
+
+void checkNumber(const std::string& name, double value) {
+  const ParamSpec& spec = specOf(name);
+  const bool above_min = spec.min_exclusive ? value > spec.min : value >= spec.min;
+  if (!std::isfinite(value) || !above_min || value > spec.max)
+    throw core::InvalidInput(name, "must be in " + spec.bounds() +
+                                       (*spec.unit ? std::string(" ") + spec.unit : "") + ", got " +
+                                       std::to_string(value));
+}
+
+void checkChoice(const std::string& name, const std::string& value) {
+  const std::string choices = specOf(name).choices;
+  if (choices.empty())
+    return;
+  if (("|" + choices + "|").find("|" + value + "|") == std::string::npos)
+    throw core::InvalidInput(name, "must be one of " + choices + ", got '" + value + "'");
+}
+
+}  // namespace
+
+std::string ParamSpec::bounds() const {
+  const std::string kind = type;
+  if (kind == "double" || kind == "int")
+    return std::string(min_exclusive ? "(" : "[") + number(min) + ", " + number(max) + "]";
+  std::string text = choices;
+  for (std::size_t bar = text.find('|'); bar != std::string::npos; bar = text.find('|', bar))
+    text.replace(bar, 1, ", ");
+  return text;
+}
+
+const std::vector<ParamSpec>& DeskewParams::specs() {
+  static const std::vector<ParamSpec> specs(std::begin(kSpecs), std::end(kSpecs));
+  return specs;
+}
+
+const std::vector<std::string>& DeskewParams::names() {
+  static const std::vector<std::string> names = [] {
+    std::vector<std::string> all;
+    for (const ParamSpec& spec : kSpecs)
+      all.push_back(spec.name);
+    return all;
+  }();
+  return names;
+}
+
+const std::vector<std::string>& DeskewParams::liveOnlyNames() {
+  static const std::vector<std::string> names = [] {
+    std::vector<std::string> live;
+    for (const ParamSpec& spec : kSpecs) {
+      if (spec.live_only)
+        live.push_back(spec.name);
+    }
+    return live;
+  }();
+  return names;
+}
+
+std::string toString(OnTfFailure value) {
+  return value == OnTfFailure::kDrop ? "drop" : "pass_through";
+}
+
+DeskewParams DeskewParams::load(const ParamSource& source) {
+  DeskewParams params;
+  std::string text;
+  source.get("fixed_frame", params.fixed_frame);
+  source.get("base_frame", params.base_frame);
+  params.fixed_frame = normalizedFrame(params.fixed_frame);
+  params.base_frame = normalizedFrame(params.base_frame);
+  if (source.get("reference", text)) {
+    checkChoice("reference", text);
+    params.deskew.reference = core::parseReference(text);
+  }
+  if (source.get("stamp_at", text)) {
+    checkChoice("stamp_at", text);
+    params.timing.stamp_at = core::parseStampAt(text);
+  }
+  source.get("scan_period", params.timing.scan_period);
+  source.get("max_sweep_duration", params.timing.max_sweep_duration);
+  source.get("knot_interval", params.deskew.knot_interval);
+  source.get("exact", params.exact);
+  if (params.exact)
+    params.deskew.knot_interval = 0.0;
+  source.get("tf_timeout", params.tf_timeout);
+  if (source.get("on_tf_failure", text)) {
+    checkChoice("on_tf_failure", text);
+    params.on_tf_failure = text == "drop" ? OnTfFailure::kDrop : OnTfFailure::kPassThrough;
+  }
+  source.get("max_tf_gap", params.max_tf_gap);
+  source.get("max_extrapolation", params.max_extrapolation);
+  source.get("queue_size", params.queue_size);
+  source.get("rebin_min_gap", params.rebin.min_gap);
+  source.get("rebin_gap_factor", params.rebin.gap_factor);
+  source.get("diagnostics_period", params.diagnostics_period);
+  params.validate();
+  return params;
+}
+
+void DeskewParams::validate() const {
+  if (fixed_frame.empty())
+    throw core::InvalidInput("fixed_frame", "must not be empty");
+  if (base_frame.empty())
+    throw core::InvalidInput("base_frame", "must not be empty");
+  if (fixed_frame == base_frame)
+    throw core::InvalidInput("base_frame", "must differ from fixed_frame");
+  checkNumber("scan_period", timing.scan_period);
+  checkNumber("max_sweep_duration", timing.max_sweep_duration);
+  if (!exact)
+    checkNumber("knot_interval", deskew.knot_interval);
+  else if (deskew.knot_interval != 0.0)
+    throw core::InvalidInput("knot_interval", "must be 0 with exact: true");
+  checkNumber("tf_timeout", tf_timeout);
+  checkNumber("max_tf_gap", max_tf_gap);
+  checkNumber("max_extrapolation", max_extrapolation);
+  checkNumber("queue_size", queue_size);
+  checkNumber("rebin_min_gap", rebin.min_gap);
+  checkNumber("rebin_gap_factor", rebin.gap_factor);
+  checkNumber("diagnostics_period", diagnostics_period);
+  // The core's own checks (the same bounds or wider).
+  timing.validate();
+  deskew.validate();
+  rebin.validate();
+}
+
+}  // namespace lidar_deskew::ros_adapter

@@ -1,0 +1,268 @@
+#include "lidar_deskew/ros/scan_pipeline.h"
+
+#include <algorithm>
+#include <chrono>
+
+#include "lidar_deskew/ros/conversions.h"
+
+namespace lidar_deskew::ros_adapter {
+namespace {
+
+/// tf, and beyond its newest sample up to `limit`, the newest velocity (from the last two samples).
+class ExtrapolatingMotion final : public core::MotionSource {
+ public:
+  ExtrapolatingMotion(const TfMotionSource& tf, core::TimeNs newest, core::TimeNs previous,
+                      core::TimeNs limit)
+      : tf_(tf), newest_(newest), previous_(previous), limit_(limit) {}
+  mrpt::poses::CPose3D basePose(core::TimeNs time) const override {
+    if (time <= newest_ || time > limit_ || previous_ >= newest_)
+      return tf_.basePose(time);
+    const double fraction = static_cast<double>(time - previous_) / static_cast<double>(newest_ - previous_);
+    return core::interpolatePose(tf_.basePose(previous_), tf_.basePose(newest_), fraction);
+  }
+  void appendSampleTimes(core::TimeNs begin, core::TimeNs end,
+                         std::vector<core::TimeNs>& times) const override {
+    tf_.appendSampleTimes(begin, end, times);
+  }
+  /// Gaps of tf up to its newest sample; beyond it the extrapolation is bounded by max_extrapolation.
+  core::TimeNs longestGap(core::TimeNs begin, core::TimeNs end) const override {
+    return tf_.longestGap(begin, std::min(end, newest_));
+  }
+
+ private:
+  const TfMotionSource& tf_;
+  core::TimeNs newest_, previous_, limit_;
+};
+
+}  // namespace
+
+std::vector<std::pair<std::string, std::uint64_t>> namedCounters(const PipelineCounters& c) {
+  return {{"received", c.received},
+          {"published", c.published},
+          {"passed through", c.passed_through},
+          {"extrapolated", c.extrapolated},
+          {"dropped: invalid", c.dropped_invalid},
+          {"dropped: tf", c.dropped_tf},
+          {"dropped: mount", c.dropped_mount},
+          {"dropped: queue", c.dropped_queue},
+          {"time_increment fallbacks", c.time_fallbacks},
+          {"tf gaps", c.tf_gaps},
+          {"mount changes", c.mount_changes},
+          {"time jumps", c.time_jumps},
+          {"statics ignored", c.statics_ignored}};
+}
+
+std::string toString(PipelineEvent event) {
+  switch (event) {
+    case PipelineEvent::kMalformed:
+      return "malformed scan";
+    case PipelineEvent::kTimeFallback:
+      return "time_increment fallback";
+    case PipelineEvent::kQueueFull:
+      return "queue full";
+    case PipelineEvent::kTfFailure:
+      return "tf failure";
+    case PipelineEvent::kMountMissing:
+      return "mount missing";
+    case PipelineEvent::kMountFirst:
+      return "mount";
+    case PipelineEvent::kMountChanged:
+      return "mount changed";
+    case PipelineEvent::kStaticIgnored:
+      return "static ignored";
+    case PipelineEvent::kTimeJump:
+      return "time jump";
+    case PipelineEvent::kBadTransform:
+      return "bad transform";
+  }
+  return "event";
+}
+
+ScanPipeline::ScanPipeline(const DeskewParams& params, Publish publish, Report report, double tf_cache_time)
+    : params_(params),
+      publish_(std::move(publish)),
+      report_(std::move(report)),
+      tf_(params.fixed_frame, params.base_frame, tf_cache_time,
+          [this](TfEvent event, const std::string& text) { onTfEvent(event, text); }),
+      processor_(params) {}
+
+void ScanPipeline::onTfEvent(TfEvent event, const std::string& text) {
+  switch (event) {
+    case TfEvent::kStaticIgnored:
+      ++counters_.statics_ignored;
+      report_(PipelineEvent::kStaticIgnored, text);
+      break;
+    case TfEvent::kTimeJump:
+      ++counters_.time_jumps;
+      report_(PipelineEvent::kTimeJump, text + " and " + std::to_string(pending_.size()) + " waiting scans");
+      pending_.clear();
+      break;
+    case TfEvent::kBadTransform:
+      report_(PipelineEvent::kBadTransform, text);
+      break;
+    case TfEvent::kMountFirst:
+      report_(PipelineEvent::kMountFirst, "mount " + text);
+      break;
+    case TfEvent::kMountChanged:
+      ++counters_.mount_changes;
+      report_(PipelineEvent::kMountChanged, "mount changed (counted): " + text);
+      break;
+  }
+}
+
+void ScanPipeline::addTransforms(const std::vector<geometry_msgs::TransformStamped>& transforms,
+                                 bool is_static, double now) {
+  for (const geometry_msgs::TransformStamped& transform : transforms)
+    tf_.add(transform, is_static);
+  serveReady(now);
+}
+
+void ScanPipeline::addScan(const sensor_msgs::LaserScan::ConstPtr& message, double now) {
+  ++counters_.received;
+  Pending pending;
+  pending.arrival = now;
+  try {
+    pending.prepared = processor_.prepare(message);
+  } catch (const std::exception& error) {  // core::InvalidInput, or out of memory for an absurd scan
+    ++counters_.dropped_invalid;
+    report_(PipelineEvent::kMalformed, "dropping malformed scan (frame '" + message->header.frame_id +
+                                           "', stamp " + std::to_string(message->header.stamp.toSec()) +
+                                           "): " + error.what());
+    return;
+  }
+  pending.frame = normalizedFrame(message->header.frame_id);
+  if (pending.prepared.timing.source != core::TimingSource::kTimeIncrement &&
+      counters_.time_fallbacks++ == 0) {
+    report_(
+        PipelineEvent::kTimeFallback,
+        std::string("scans have time_increment = 0; beam times come from ") +
+            (pending.prepared.timing.source == core::TimingSource::kScanTime ? "scan_time"
+                                                                             : "the scan_period parameter") +
+            " (counted)");
+  }
+  pending_.push_back(std::move(pending));
+  while (static_cast<int>(pending_.size()) > params_.queue_size) {
+    ++counters_.dropped_queue;
+    report_(PipelineEvent::kQueueFull,
+            "more than " + std::to_string(params_.queue_size) + " scans wait for tf; dropping the oldest");
+    pending_.pop_front();
+  }
+  serveReady(now);
+}
+
+bool ScanPipeline::ready(const Pending& pending, bool& extrapolate) const {
+  extrapolate = false;
+  // The mount may arrive after the motion (another connection): wait for both.
+  if (!tf_.mountKnown(pending.frame))
+    return false;
+  const core::TimeNs first = pending.prepared.timing.earliestBeamTime();
+  const core::TimeNs last = pending.prepared.timing.latestBeamTime();
+  if (tf_.covers(first, last))
+    return true;
+  if (params_.max_extrapolation <= 0.0 || !tf_.covers(first, first))
+    return false;
+  // tf of the chain ends inside the sweep, less than max_extrapolation before its last beam.
+  const core::TimeNs newest = tf_.newestChainTime();
+  extrapolate = newest >= first && newest + core::secondsToNs(params_.max_extrapolation) >= last;
+  return extrapolate;
+}
+
+void ScanPipeline::serveReady(double now) {
+  while (!pending_.empty()) {
+    bool extrapolate = false;
+    if (!ready(pending_.front(), extrapolate))
+      return;  // tf only grows: later scans wait too
+    const Pending next = std::move(pending_.front());
+    pending_.pop_front();
+    correct(next, extrapolate, now);
+  }
+}
+
+void ScanPipeline::expire(double now) {
+  serveReady(now);
+  while (!pending_.empty() && now - pending_.front().arrival > params_.tf_timeout) {
+    const Pending expired = std::move(pending_.front());
+    pending_.pop_front();
+    if (!tf_.mountKnown(expired.frame)) {
+      ++counters_.dropped_mount;
+      report_(PipelineEvent::kMountMissing, "dropping scan: no transform " + tf_.baseFrame() + " -> " +
+                                                expired.frame + " (the laser mount) within tf_timeout");
+    } else {
+      fail(expired, "tf did not cover the sweep within tf_timeout");
+    }
+    serveReady(now);  // scans behind an expired one may be ready: serve them before they expire
+  }
+}
+
+void ScanPipeline::flush() {
+  while (!pending_.empty()) {
+    const Pending last = std::move(pending_.front());
+    pending_.pop_front();
+    if (!tf_.mountKnown(last.frame)) {
+      ++counters_.dropped_mount;
+      report_(PipelineEvent::kMountMissing,
+              "dropping scan: no transform " + tf_.baseFrame() + " -> " + last.frame + " (the laser mount)");
+    } else {
+      fail(last, "tf does not cover the sweep");
+    }
+  }
+}
+
+void ScanPipeline::correct(const Pending& pending, bool extrapolate, double now) {
+  const auto start = std::chrono::steady_clock::now();
+  std::string error;
+  const std::optional<mrpt::poses::CPose3D> mount = tf_.mount(pending.frame, error);
+  if (!mount) {
+    ++counters_.dropped_mount;
+    report_(PipelineEvent::kMountMissing, "dropping scan: no transform " + tf_.baseFrame() + " -> " +
+                                              pending.frame + " for the laser mount: " + error);
+    return;
+  }
+  PipelineResult result;
+  try {
+    if (extrapolate) {
+      std::vector<core::TimeNs> samples;
+      const core::TimeNs newest = tf_.newestChainTime();
+      tf_.motion().appendSampleTimes(newest - 1'000'000'000, newest, samples);
+      const core::TimeNs previous = samples.empty() ? newest : samples.back();
+      const ExtrapolatingMotion motion(tf_.motion(), newest, previous,
+                                       newest + core::secondsToNs(params_.max_extrapolation));
+      result.outputs = processor_.correct(pending.prepared, *mount, motion);
+      ++counters_.extrapolated;
+    } else {
+      result.outputs = processor_.correct(pending.prepared, *mount, tf_.motion());
+    }
+  } catch (const TfGapTooLong& gap) {
+    ++counters_.tf_gaps;
+    fail(pending, gap.what());
+    return;
+  } catch (const core::MotionUnavailable& unavailable) {
+    fail(pending, unavailable.what());
+    return;
+  }
+  ++counters_.published;
+  result.input = pending.prepared.message;
+  result.corrected = true;
+  result.arrival = pending.arrival;
+  result.waited = std::max(0.0, now - pending.arrival);
+  result.correction = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  publish_(result);
+}
+
+void ScanPipeline::fail(const Pending& pending, const std::string& reason) {
+  const std::string stamp = std::to_string(pending.prepared.message->header.stamp.toSec());
+  if (params_.on_tf_failure == OnTfFailure::kDrop) {
+    ++counters_.dropped_tf;
+    report_(PipelineEvent::kTfFailure, "dropping scan at " + stamp + ": " + reason);
+    return;
+  }
+  ++counters_.passed_through;
+  report_(PipelineEvent::kTfFailure, "passing scan at " + stamp + " through uncorrected: " + reason);
+  PipelineResult result;
+  result.input = pending.prepared.message;
+  result.outputs = processor_.passThrough(pending.prepared);
+  result.arrival = pending.arrival;
+  publish_(result);
+}
+
+}  // namespace lidar_deskew::ros_adapter
