@@ -1,0 +1,97 @@
+// The live deskew: LaserScan in, corrected LaserScan and PCL cloud out, motion from tf2. One class
+// behind both the nodelet and the plain node; the work is ros_adapter::ScanPipeline's, shared with
+// deskew_bag. This class owns the ROS side: subscriptions, publishing, waiting on the wall clock,
+// diagnostics (docs/DESIGN.md).
+#pragma once
+
+#include <diagnostic_updater/diagnostic_updater.h>
+#include <ros/ros.h>
+#include <sensor_msgs/LaserScan.h>
+#include <tf2_msgs/TFMessage.h>
+
+#include <map>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <vector>
+
+#include "lidar_deskew/ros/deskew_params.h"
+#include "lidar_deskew/ros/scan_pipeline.h"
+
+namespace lidar_deskew::node {
+
+/// Subscribes to `scan` (remappable) while anyone subscribes to an output; publishes `scan_deskewed`
+/// (sensor_msgs/LaserScan on the input's grid) and `scan_deskewed_points` (PCL cloud of PointXYZITI),
+/// both in the scan's frame, stamped at the reference time. A scan waits, without blocking any
+/// callback, until tf covers its last beam, and is processed from the tf callback that brings it.
+/// Thread-safe: callbacks may come from several threads.
+class LaserScanDeskewNode {
+ public:
+  /// The pipeline's counters and the node's timing.
+  struct Counters : ros_adapter::PipelineCounters {
+    double tf_wait_total = 0.0;     ///< [s] arrival to "tf covers the last beam", summed
+    double tf_wait_max = 0.0;       ///< [s]
+    double processing_total = 0.0;  ///< [s] correction + re-binning + publishing, summed
+    double processing_max = 0.0;    ///< [s]
+  };
+
+  /// Reads and validates the parameters (throws core::InvalidInput naming the bad one: nothing is
+  /// advertised then), advertises the outputs and listens to /tf and /tf_static. `name` prefixes log
+  /// lines and names the diagnostics.
+  LaserScanDeskewNode(ros::NodeHandle nh, ros::NodeHandle private_nh, std::string name);
+  ~LaserScanDeskewNode();
+
+  LaserScanDeskewNode(const LaserScanDeskewNode&) = delete;
+  LaserScanDeskewNode& operator=(const LaserScanDeskewNode&) = delete;
+
+  const ros_adapter::DeskewParams& params() const { return params_; }
+  Counters counters() const;
+
+  /// [s] 99th percentile of the latency from the callback in which tf covered a scan's last beam (or
+  /// the scan arrived already covered) to its outputs being published, over the last 1000 scans.
+  double latencyP99() const;
+
+  /// Address of the last cloud any instance in this process published (tests prove zero-copy with it).
+  static const void* lastPublishedCloud();
+
+ private:
+  void connectCallback();
+  void scanCallback(const sensor_msgs::LaserScan::ConstPtr& message);
+  void tfCallback(const tf2_msgs::TFMessage::ConstPtr& message, bool is_static);
+  void timerCallback(const ros::WallTimerEvent& event);
+
+  // All below run with mutex_ held.
+  void publish(const ros_adapter::PipelineResult& result);
+  void report(ros_adapter::PipelineEvent event, const std::string& text);
+  void produceDiagnostics(diagnostic_updater::DiagnosticStatusWrapper& status);
+  double latencyP99Locked() const;
+
+  ros::NodeHandle nh_;
+  ros::NodeHandle private_nh_;
+  std::string name_;
+  ros_adapter::DeskewParams params_;
+
+  mutable std::mutex mutex_;
+  std::mutex connect_mutex_;
+  bool shutting_down_ = false;  // guarded by connect_mutex_
+  ros_adapter::ScanPipeline pipeline_;
+  Counters timing_;        // the timing fields only; the rest is the pipeline's
+  ros::WallTime trigger_;  // the callback now serving scans
+  std::map<ros_adapter::PipelineEvent, ros::WallTime> last_report_;  // for throttling
+  std::vector<double> latencies_;                                    // [s] ring of the last kLatencies
+  std::size_t next_latency_ = 0;
+  Counters counters_at_last_diagnostics_;
+  ros::WallTime last_diagnostics_;
+  ros::WallTime last_tick_;      // the timer's last run
+  ros::WallTime running_since_;  // the end of the last stall of this process
+
+  ros::Publisher scan_publisher_;
+  ros::Publisher cloud_publisher_;
+  ros::Subscriber scan_subscriber_;
+  ros::Subscriber tf_subscriber_;
+  ros::Subscriber tf_static_subscriber_;
+  ros::WallTimer timer_;
+  std::unique_ptr<diagnostic_updater::Updater> diagnostics_;
+};
+
+}  // namespace lidar_deskew::node

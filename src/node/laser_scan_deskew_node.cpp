@@ -1,0 +1,267 @@
+#include "lidar_deskew/node/laser_scan_deskew_node.h"
+
+#include <pcl_ros/point_cloud.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+
+namespace lidar_deskew::node {
+namespace {
+
+using ros_adapter::PipelineEvent;
+
+std::atomic<const void*> last_published_cloud{nullptr};
+
+/// [s] The timer that expires scans waiting for tf longer than tf_timeout.
+constexpr double kTimerPeriod = 0.02;
+
+/// Scans over which the latency percentile is taken.
+constexpr std::size_t kLatencies = 1000;
+
+/// How each pipeline event is logged: level, and the shortest interval between two lines [s].
+struct LogPolicy {
+  ros::console::levels::Level level;
+  double period;
+};
+
+LogPolicy policyOf(PipelineEvent event) {
+  using ros::console::levels::Level;
+  switch (event) {
+    case PipelineEvent::kMalformed:
+      return {Level::Error, 1.0};
+    case PipelineEvent::kMountMissing:
+      return {Level::Error, 1.0};
+    case PipelineEvent::kQueueFull:
+      return {Level::Warn, 1.0};
+    case PipelineEvent::kTfFailure:
+      return {Level::Warn, 1.0};
+    case PipelineEvent::kBadTransform:
+      return {Level::Warn, 1.0};
+    case PipelineEvent::kMountChanged:
+      return {Level::Info, 5.0};         // a mount moving on /tf changes often
+    case PipelineEvent::kTimeFallback:   // reported once by the pipeline
+    case PipelineEvent::kStaticIgnored:  // once per frame
+    case PipelineEvent::kTimeJump:
+      return {Level::Warn, 0.0};
+    case PipelineEvent::kMountFirst:
+      return {Level::Info, 0.0};
+  }
+  return {Level::Warn, 1.0};
+}
+
+}  // namespace
+
+LaserScanDeskewNode::LaserScanDeskewNode(ros::NodeHandle nh, ros::NodeHandle private_nh, std::string name)
+    : nh_(nh),
+      private_nh_(private_nh),
+      name_(std::move(name)),
+      params_(ros_adapter::DeskewParams::load(private_nh)),
+      pipeline_(
+          params_, [this](const ros_adapter::PipelineResult& result) { publish(result); },
+          [this](PipelineEvent event, const std::string& text) { report(event, text); }) {
+  last_diagnostics_ = last_tick_ = running_since_ = trigger_ = ros::WallTime::now();
+  private_nh_.setParam("diagnostic_period", params_.diagnostics_period);  // read by the Updater
+  diagnostics_ = std::make_unique<diagnostic_updater::Updater>(nh_, private_nh_, name_);
+  diagnostics_->setHardwareID("none");
+  diagnostics_->add(name_ + ": deskew", this, &LaserScanDeskewNode::produceDiagnostics);
+
+  // Absolute names on the node's own handle: in a nodelet, tf then arrives on the nodelet's queue.
+  tf_subscriber_ = nh_.subscribe<tf2_msgs::TFMessage>(
+      "/tf", 100, [this](const tf2_msgs::TFMessage::ConstPtr& message) { tfCallback(message, false); },
+      ros::VoidConstPtr(), ros::TransportHints().tcpNoDelay());
+  tf_static_subscriber_ = nh_.subscribe<tf2_msgs::TFMessage>(
+      "/tf_static", 100, [this](const tf2_msgs::TFMessage::ConstPtr& message) { tfCallback(message, true); },
+      ros::VoidConstPtr(), ros::TransportHints().tcpNoDelay());
+
+  {
+    // Held while advertising: a subscriber connecting right away must see both publishers set.
+    std::lock_guard<std::mutex> lock(connect_mutex_);
+    const ros::SubscriberStatusCallback connect = [this](const ros::SingleSubscriberPublisher&) {
+      connectCallback();
+    };
+    scan_publisher_ = nh_.advertise<sensor_msgs::LaserScan>("scan_deskewed", 10, connect, connect);
+    cloud_publisher_ =
+        nh_.advertise<ros_adapter::DeskewedCloud>("scan_deskewed_points", 10, connect, connect);
+  }
+  timer_ = nh_.createWallTimer(ros::WallDuration(kTimerPeriod), &LaserScanDeskewNode::timerCallback, this);
+  const std::string mode = params_.exact
+                               ? "exact per-beam lookups"
+                               : "knots every " + std::to_string(params_.deskew.knot_interval) + " s";
+  ROS_INFO("%s: fixed_frame %s, base_frame %s, reference %s, %s, tf_timeout %.3f s, on_tf_failure %s",
+           name_.c_str(), params_.fixed_frame.c_str(), params_.base_frame.c_str(),
+           core::toString(params_.deskew.reference).c_str(), mode.c_str(), params_.tf_timeout,
+           ros_adapter::toString(params_.on_tf_failure).c_str());
+}
+
+LaserScanDeskewNode::~LaserScanDeskewNode() {
+  {
+    // No connect callback may touch a publisher or subscribe while members go away.
+    std::lock_guard<std::mutex> lock(connect_mutex_);
+    shutting_down_ = true;
+    scan_publisher_.shutdown();
+    cloud_publisher_.shutdown();
+  }
+  timer_.stop();
+  scan_subscriber_.shutdown();
+  tf_subscriber_.shutdown();
+  tf_static_subscriber_.shutdown();
+}
+
+const void* LaserScanDeskewNode::lastPublishedCloud() {
+  return last_published_cloud.load();
+}
+
+double LaserScanDeskewNode::latencyP99() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return latencyP99Locked();
+}
+
+double LaserScanDeskewNode::latencyP99Locked() const {
+  if (latencies_.empty())
+    return 0.0;
+  std::vector<double> sorted = latencies_;
+  const std::size_t rank = static_cast<std::size_t>(std::ceil(0.99 * sorted.size())) - 1;
+  std::nth_element(sorted.begin(), sorted.begin() + rank, sorted.end());
+  return sorted[rank];
+}
+
+LaserScanDeskewNode::Counters LaserScanDeskewNode::counters() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  Counters counters = timing_;
+  static_cast<ros_adapter::PipelineCounters&>(counters) = pipeline_.counters();
+  return counters;
+}
+
+void LaserScanDeskewNode::connectCallback() {
+  std::lock_guard<std::mutex> lock(connect_mutex_);
+  if (shutting_down_)
+    return;
+  const bool wanted = scan_publisher_.getNumSubscribers() + cloud_publisher_.getNumSubscribers() > 0;
+  if (wanted && !scan_subscriber_) {
+    scan_subscriber_ = nh_.subscribe<sensor_msgs::LaserScan>("scan", 10, &LaserScanDeskewNode::scanCallback,
+                                                             this, ros::TransportHints().tcpNoDelay());
+  } else if (!wanted && scan_subscriber_) {
+    scan_subscriber_.shutdown();
+  }
+}
+
+void LaserScanDeskewNode::scanCallback(const sensor_msgs::LaserScan::ConstPtr& message) {
+  const ros::WallTime arrival = ros::WallTime::now();
+  std::lock_guard<std::mutex> lock(mutex_);
+  trigger_ = arrival;
+  try {
+    pipeline_.addScan(message, arrival.toSec());
+  } catch (const std::exception& error) {  // never let an exception reach the manager
+    ROS_ERROR_THROTTLE(1.0, "%s: error processing scans: %s", name_.c_str(), error.what());
+  }
+}
+
+void LaserScanDeskewNode::tfCallback(const tf2_msgs::TFMessage::ConstPtr& message, bool is_static) {
+  const ros::WallTime arrival = ros::WallTime::now();
+  std::lock_guard<std::mutex> lock(mutex_);
+  trigger_ = arrival;
+  try {
+    pipeline_.addTransforms(message->transforms, is_static, arrival.toSec());
+  } catch (const std::exception& error) {  // never let an exception reach the manager
+    ROS_ERROR_THROTTLE(1.0, "%s: error handling tf: %s", name_.c_str(), error.what());
+  }
+}
+
+void LaserScanDeskewNode::timerCallback(const ros::WallTimerEvent& /*event*/) {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    const ros::WallTime now = ros::WallTime::now();
+    trigger_ = now;
+    // After a stall of this process (descheduled, swapped out, stopped), tf that came meanwhile may
+    // not have been read yet: expire nothing until it has run for two timer periods again, so that
+    // our own stall is never taken for tf being late.
+    if ((now - last_tick_).toSec() > 2 * kTimerPeriod)
+      running_since_ = now;
+    last_tick_ = now;
+    const bool settled = (now - running_since_).toSec() >= 2 * kTimerPeriod;
+    try {
+      if (settled)
+        pipeline_.expire(now.toSec());
+      else
+        pipeline_.serveReady(now.toSec());
+    } catch (const std::exception& error) {  // never let an exception reach the manager
+      ROS_ERROR_THROTTLE(1.0, "%s: error processing scans: %s", name_.c_str(), error.what());
+    }
+  }
+  diagnostics_->update();
+}
+
+void LaserScanDeskewNode::report(PipelineEvent event, const std::string& text) {
+  const LogPolicy policy = policyOf(event);
+  const ros::WallTime now = ros::WallTime::now();
+  const auto last = last_report_.find(event);
+  if (policy.period > 0.0 && last != last_report_.end() && (now - last->second).toSec() < policy.period)
+    return;
+  last_report_[event] = now;
+  // One macro per level: a rosconsole location keeps the level of its first use.
+  if (policy.level == ros::console::levels::Error) {
+    ROS_ERROR("%s: %s", name_.c_str(), text.c_str());
+  } else if (policy.level == ros::console::levels::Warn) {
+    ROS_WARN("%s: %s", name_.c_str(), text.c_str());
+  } else {
+    ROS_INFO("%s: %s", name_.c_str(), text.c_str());
+  }
+}
+
+void LaserScanDeskewNode::publish(const ros_adapter::PipelineResult& result) {
+  const ros::WallTime start = ros::WallTime::now();
+  // Shared pointers, never touched after publishing: same-type subscribers in the manager get them as is.
+  scan_publisher_.publish(result.outputs.scan);
+  last_published_cloud.store(result.outputs.cloud.get());
+  cloud_publisher_.publish(result.outputs.cloud);
+  if (!result.corrected)
+    return;
+  const ros::WallTime done = ros::WallTime::now();
+  const double processing = result.correction + (done - start).toSec();
+  if (latencies_.size() < kLatencies) {
+    latencies_.push_back((done - trigger_).toSec());
+  } else {
+    latencies_[next_latency_] = (done - trigger_).toSec();
+    next_latency_ = (next_latency_ + 1) % kLatencies;
+  }
+  timing_.tf_wait_total += result.waited;
+  timing_.tf_wait_max = std::max(timing_.tf_wait_max, result.waited);
+  timing_.processing_total += processing;
+  timing_.processing_max = std::max(timing_.processing_max, processing);
+}
+
+void LaserScanDeskewNode::produceDiagnostics(diagnostic_updater::DiagnosticStatusWrapper& status) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  Counters counters = timing_;
+  static_cast<ros_adapter::PipelineCounters&>(counters) = pipeline_.counters();
+  const ros::WallTime now = ros::WallTime::now();
+  const double elapsed = std::max(1e-9, (now - last_diagnostics_).toSec());
+  const Counters& was = counters_at_last_diagnostics_;
+  const std::uint64_t dropped =
+      counters.dropped_invalid + counters.dropped_tf + counters.dropped_mount + counters.dropped_queue;
+  const std::uint64_t dropped_before =
+      was.dropped_invalid + was.dropped_tf + was.dropped_mount + was.dropped_queue;
+  if (dropped > dropped_before) {
+    status.summary(diagnostic_msgs::DiagnosticStatus::WARN, "dropping scans");
+  } else if (counters.passed_through > was.passed_through) {
+    status.summary(diagnostic_msgs::DiagnosticStatus::WARN, "passing scans through uncorrected");
+  } else {
+    status.summary(diagnostic_msgs::DiagnosticStatus::OK, "ok");
+  }
+  status.add("input rate [Hz]", (counters.received - was.received) / elapsed);
+  status.add("output rate [Hz]", (counters.published - was.published) / elapsed);
+  for (const auto& [name, value] : ros_adapter::namedCounters(counters))
+    status.add(name, value);
+  status.add("waiting scans", pipeline_.waiting());
+  const double done = std::max<std::uint64_t>(1, counters.published);
+  status.add("tf wait mean [ms]", 1e3 * counters.tf_wait_total / done);
+  status.add("tf wait max [ms]", 1e3 * counters.tf_wait_max);
+  status.add("processing mean [us]", 1e6 * counters.processing_total / done);
+  status.add("processing max [us]", 1e6 * counters.processing_max);
+  status.add("latency p99 [ms]", 1e3 * latencyP99Locked());
+  counters_at_last_diagnostics_ = counters;
+  last_diagnostics_ = now;
+}
+
+}  // namespace lidar_deskew::node
