@@ -1,0 +1,23 @@
+// A whole bag's tf in one TfFeed, for tools that look at every scan of a recording afterwards
+// (evaluation against truth, the consistency measure).
+#pragma once
+
+#include <rosbag/bag.h>
+
+#include <memory>
+#include <string>
+
+#include "lidar_deskew/ros/tf_feed.h"
+
+namespace lidar_deskew::eval {
+
+/// Feeds every /tf and /tf_static message of `bag`, in record order, into a TfFeed whose cache spans
+/// the whole bag, so it answers for every scan; the live node's rules apply (docs/DESIGN.md §3). Notes
+/// (statics left out, time jumps) go to `notes` when given. Throws std::runtime_error naming the
+/// frames when tf never connects fixed_frame to base_frame.
+std::unique_ptr<ros_adapter::TfFeed> loadRecordedTf(rosbag::Bag& bag, const std::string& bag_path,
+                                                    const std::string& fixed_frame,
+                                                    const std::string& base_frame,
+                                                    std::string* notes = nullptr);
+
+}  // namespace lidar_deskew::eval

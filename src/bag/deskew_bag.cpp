@@ -1,0 +1,180 @@
+// deskew_bag: reprocesses a recorded bag through the live node's pipeline (docs/DESIGN.md §2). No
+// roscore needed. `deskew_bag --help` prints the usage.
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <csignal>
+#include <cstdio>
+#include <exception>
+#include <map>
+#include <string>
+
+#include "lidar_deskew/bag/bag_deskew.h"
+#include "lidar_deskew/eval/consistency.h"
+
+namespace {
+
+using namespace lidar_deskew;
+
+std::atomic<bool> interrupted{false};
+
+extern "C" void onSignal(int /*signal*/) {
+  interrupted.store(true);
+}
+
+void printUsage(std::FILE* to, const char* program) {
+  std::fprintf(
+      to,
+      "usage: %s IN.bag OUT.bag [--scan-topic T]... [--replace] [--compression none|bz2|lz4]\n"
+      "          [--consistency] [--consistency-figure CSV] [--quiet] [--PARAMETER VALUE]...\n"
+      "\n"
+      "Corrects the LaserScans of IN.bag with the live node's pipeline; writes every message of IN.bag\n"
+      "as it was plus <topic>_deskewed (LaserScan) and <topic>_deskewed_points (PointCloud2).\n"
+      "  --scan-topic T      a topic to correct (repeatable); default: the bag's LaserScan topics\n"
+      "  --replace           corrected scan on T itself, the raw one on T_raw\n"
+      "  --compression C     of OUT.bag: none (default), bz2 or lz4\n"
+      "  --consistency       print how well consecutive scans agree while turning, raw and corrected\n"
+      "  --consistency-figure CSV   the same, and the points of the pair turning most to CSV\n"
+      "  --quiet             no notes, no progress bar\n"
+      "  --help              this text\n"
+      "PARAMETER: any of the node's parameters (README), with - or _:",
+      program);
+  const auto& live_only = ros_adapter::DeskewParams::liveOnlyNames();
+  for (const std::string& name : ros_adapter::DeskewParams::names()) {
+    if (std::find(live_only.begin(), live_only.end(), name) == live_only.end())
+      std::fprintf(to, " %s", name.c_str());
+  }
+  std::fprintf(to, "\n(live only, refused here:");
+  for (const std::string& name : live_only)
+    std::fprintf(to, " %s", name.c_str());
+  std::fprintf(to, ")\n");
+}
+
+int usageError(const char* program, const std::string& message) {
+  std::fprintf(stderr, "deskew_bag: %s\n", message.c_str());
+  printUsage(stderr, program);
+  return 2;
+}
+
+void printCounters(const std::string& topic, const ros_adapter::PipelineCounters& counters) {
+  std::string text;
+  for (const auto& [name, value] : ros_adapter::namedCounters(counters))
+    text += (text.empty() ? "" : ", ") + name + " " + std::to_string(value);
+  std::printf("  %s: %s\n", topic.c_str(), text.c_str());
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  bag::BagDeskewOptions options;
+  std::map<std::string, std::string> parameters;
+  bool quiet = false, consistency = false;
+  std::string consistency_figure;
+  std::vector<std::string> positional;
+  const auto& names = ros_adapter::DeskewParams::names();
+  const auto& live_only = ros_adapter::DeskewParams::liveOnlyNames();
+  for (int a = 1; a < argc; ++a) {
+    const std::string arg = argv[a];
+    const bool has_value = a + 1 < argc;
+    if (arg == "--help" || arg == "-h") {
+      printUsage(stdout, argv[0]);
+      return 0;
+    } else if (arg == "--replace") {
+      options.replace = true;
+    } else if (arg == "--consistency") {
+      consistency = true;
+    } else if (arg == "--quiet") {
+      quiet = true;
+    } else if (arg == "--scan-topic" || arg == "--compression" || arg == "--consistency-figure") {
+      if (!has_value)
+        return usageError(argv[0], arg + " needs a value");
+      const std::string value = argv[++a];
+      if (arg == "--scan-topic") {
+        options.scan_topics.push_back(value);
+      } else if (arg == "--compression") {
+        options.compression = value;
+      } else {
+        consistency = true;
+        consistency_figure = value;
+      }
+    } else if (arg.rfind("--", 0) == 0) {
+      std::string name = arg.substr(2);
+      std::replace(name.begin(), name.end(), '-', '_');
+      if (std::find(live_only.begin(), live_only.end(), name) != live_only.end()) {
+        return usageError(argv[0],
+                          "--" + name +
+                              " is a parameter of the live node only: offline, tf that comes after a "
+                              "scan is in the bag, so nothing is extrapolated, and there are no "
+                              "diagnostics (the summary holds their counters)");
+      }
+      if (std::find(names.begin(), names.end(), name) == names.end())
+        return usageError(argv[0], "unknown option " + arg);
+      if (!has_value)
+        return usageError(argv[0], arg + " needs a value");
+      parameters[name] = argv[++a];
+    } else {
+      positional.push_back(arg);
+    }
+  }
+  if (positional.size() != 2) {
+    return usageError(argv[0],
+                      "expected IN.bag OUT.bag, got " + std::to_string(positional.size()) + " file name(s)");
+  }
+  options.input = positional[0];
+  options.output = positional[1];
+
+  // Ctrl-C and SIGTERM stop the run cleanly: the temporary output is removed.
+  std::signal(SIGINT, onSignal);
+  std::signal(SIGTERM, onSignal);
+  options.interrupted = &interrupted;
+
+  const bool terminal = isatty(STDERR_FILENO) && !quiet;
+  const auto started = std::chrono::steady_clock::now();
+  options.inform = [&](const std::string& note) {
+    if (!quiet)
+      std::fprintf(stderr, "%s%s\n", terminal ? "\r\033[K" : "", note.c_str());
+  };
+  if (terminal) {
+    options.progress = [&](double fraction, std::size_t scans) {
+      const double elapsed =
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+      const int filled = static_cast<int>(30 * fraction);
+      const double eta = fraction > 0.0 ? elapsed * (1.0 - fraction) / fraction : 0.0;
+      std::fprintf(stderr, "\r[%-30s] %3.0f%%  %6.0f scans/s  ETA %4.0f s", std::string(filled, '#').c_str(),
+                   100.0 * fraction, scans / std::max(elapsed, 1e-9), eta);
+      if (fraction >= 1.0)
+        std::fprintf(stderr, "\n");
+    };
+  }
+  try {
+    options.params = ros_adapter::DeskewParams::load(ros_adapter::TextParams(parameters));
+    const bag::BagDeskewSummary summary = bag::deskewBag(options);
+    const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+    std::printf("deskew_bag: %s -> %s in %.2f s, %zu messages copied\n", options.input.c_str(),
+                options.output.c_str(), elapsed, summary.messages);
+    for (const auto& [topic, counters] : summary.counters)
+      printCounters(topic, counters);
+    if (consistency) {
+      for (const std::string& topic : summary.chosen_topics) {
+        const std::string corrected = options.replace ? topic : topic + "_deskewed";
+        const std::string raw = options.replace ? topic + "_raw" : topic;
+        const eval::ConsistencyReport report = eval::measureConsistency(
+            options.output, raw, corrected, options.params, 0.1, 0.3, consistency_figure);
+        std::printf(
+            "  %s while turning (%zu scan pairs): consecutive scans %.1f mm apart raw, %.1f mm corrected\n",
+            topic.c_str(), report.turning_pairs, report.raw_mm, report.corrected_mm);
+      }
+    }
+  } catch (const bag::Interrupted& error) {
+    std::fprintf(stderr, "%sdeskew_bag: %s\n", terminal ? "\n" : "", error.what());
+    return 130;
+  } catch (const std::exception& error) {
+    if (terminal)
+      std::fprintf(stderr, "\n");
+    std::fprintf(stderr, "deskew_bag: %s\n", error.what());
+    return 1;
+  }
+  return 0;
+}

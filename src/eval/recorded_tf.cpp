@@ -1,0 +1,34 @@
+#include "lidar_deskew/eval/recorded_tf.h"
+
+#include <rosbag/view.h>
+#include <tf2_msgs/TFMessage.h>
+
+namespace lidar_deskew::eval {
+
+std::unique_ptr<ros_adapter::TfFeed> loadRecordedTf(rosbag::Bag& bag, const std::string& bag_path,
+                                                    const std::string& fixed_frame,
+                                                    const std::string& base_frame, std::string* notes) {
+  rosbag::View everything(bag);
+  const double duration = (everything.getEndTime() - everything.getBeginTime()).toSec();
+  auto feed = std::make_unique<ros_adapter::TfFeed>(
+      fixed_frame, base_frame, duration + 60.0, [notes](ros_adapter::TfEvent event, const std::string& text) {
+        if (notes && event != ros_adapter::TfEvent::kMountFirst)
+          *notes += (notes->empty() ? "" : "\n") + text;
+      });
+  for (const rosbag::MessageInstance& message :
+       rosbag::View(bag, rosbag::TopicQuery(std::vector<std::string>{"/tf", "/tf_static"}))) {
+    if (const auto transforms = message.instantiate<tf2_msgs::TFMessage>()) {
+      for (const geometry_msgs::TransformStamped& transform : transforms->transforms)
+        feed->add(transform, message.getTopic() == "/tf_static");
+    }
+  }
+  std::string error;
+  if (!feed->buffer().canTransform(feed->fixedFrame(), feed->baseFrame(), ros::Time(0), &error)) {
+    throw std::runtime_error(bag_path + " has no tf from '" + feed->fixedFrame() + "' to '" +
+                             feed->baseFrame() + "' (set fixed_frame / base_frame); frames in its tf:\n" +
+                             feed->buffer().allFramesAsString());
+  }
+  return feed;
+}
+
+}  // namespace lidar_deskew::eval
