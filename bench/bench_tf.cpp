@@ -52,12 +52,13 @@ struct Recording {
     buffer.setTransform(transform, "bench", true);
     transform.header.frame_id = "odom";
     transform.child_frame_id = "base_link";
+    motion.setSingleLink(true);  // odom -> base_link is one dynamic link: its stamps are all its samples
     for (int k = -5; k <= 60; ++k) {
       const double t = 0.02 * k;
       transform.header.stamp = ros_adapter::toRosTime(kEpoch + core::secondsToNs(t));
       transform.transform = ros_adapter::toTransform(toMrpt(trajectory.pose(t)));
       buffer.setTransform(transform, "bench", false);
-      motion.observe(transform);
+      motion.addSampleTime(ros_adapter::toNs(transform.header.stamp));
     }
     for (double start = 0.0; start + 1.0 / model.rate <= 1.0 + 1e-9; start += 1.0 / model.rate) {
       simulated.push_back(sim::simulateScan(world, trajectory, mount, model, kEpoch, start));

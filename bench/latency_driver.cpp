@@ -14,7 +14,7 @@
 #include <string>
 #include <vector>
 
-#include "../test/ros/live_rig.h"
+#include "../test/node/live_rig.h"
 
 namespace {
 

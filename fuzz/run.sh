@@ -1,33 +1,31 @@
 #!/usr/bin/env bash
-# Builds the libFuzzer targets with clang under ASan and UBSan and runs each for a bounded time.
-#   bash fuzz/run.sh [SECONDS_PER_TARGET]      (default 60; the corpus in fuzz/corpus/ grows)
+# Builds the libFuzzer targets with CMake and clang (-DLIDAR_DESKEW_FUZZ=ON: ASan and UBSan) and runs
+# each for a bounded time.
+#   bash fuzz/run.sh [SECONDS_PER_TARGET]      (default 60)
 # Targets: fuzz_core (the ROS-free core) and fuzz_messages (LaserScan bytes through ScanProcessor).
+# The tracked corpus in fuzz/corpus/ is read, never written: new inputs go to .build/fuzz/new/TARGET
+# (merge them with `FUZZER -merge=1 fuzz/corpus/TARGET .build/fuzz/new/TARGET` to keep them).
 # A finding leaves its input in .build/fuzz/ and makes the script exit non-zero.
 set -euo pipefail
 export PATH=/usr/bin:/bin:$PATH
 repo=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 seconds=${1:-60}
 out="$repo/.build/fuzz"
+build="$out/build"
 mkdir -p "$out"
-flags=(-std=c++17 -O1 -g -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=undefined
-       -I"$repo/include" -I/usr/include/eigen3)
-for module in poses math core typemeta serialization rtti containers system random config io bayes; do
-  flags+=(-I/usr/include/mrpt/$module/include)
-done
-clang++ "${flags[@]}" "$repo/fuzz/fuzz_core.cpp" "$repo"/src/core/*.cpp -o "$out/fuzz_core" \
-  -lmrpt-poses -lmrpt-math -lmrpt-serialization -lmrpt-rtti -lmrpt-core -lmrpt-system -lmrpt-containers
-ros=(-I/usr/include/pcl-1.13 -I/usr/include/mrpt/ros1bridge/include)
-clang++ "${flags[@]}" "${ros[@]}" "$repo/fuzz/fuzz_messages.cpp" "$repo"/src/core/*.cpp "$repo/src/ros/conversions.cpp" \
-  "$repo/src/ros/scan_processor.cpp" "$repo/src/ros/params.cpp" -o "$out/fuzz_messages" \
-  -lmrpt-ros1bridge -lmrpt-poses -lmrpt-math -lmrpt-serialization -lmrpt-rtti -lmrpt-core -lmrpt-system \
-  -lmrpt-containers -lroscpp -lroscpp_serialization -lrostime -lcpp_common -lboost_system
+cmake -S "$repo" -B "$build" -DCMAKE_CXX_COMPILER=clang++ -DLIDAR_DESKEW_FUZZ=ON -DCATKIN_ENABLE_TESTING=OFF \
+  -DCMAKE_BUILD_TYPE=RelWithDebInfo >"$out/configure.log" 2>&1 || { cat "$out/configure.log"; exit 1; }
+cmake --build "$build" --target fuzz_core fuzz_messages -j"${LIDAR_DESKEW_JOBS:-2}" >"$out/build.log" 2>&1 ||
+  { tail -50 "$out/build.log"; exit 1; }
 
 status=0
 for target in core messages; do
-  mkdir -p "$repo/fuzz/corpus/$target"
+  binary=$(find "$build" -type f -name "fuzz_$target" -perm -u+x | head -n 1)
+  mkdir -p "$out/new/$target"
   echo "== fuzz_$target, ${seconds} s"
-  if ! "$out/fuzz_$target" -max_total_time="$seconds" -print_final_stats=1 -artifact_prefix="$out/$target-" \
-      "$repo/fuzz/corpus/$target" > "$out/$target.log" 2>&1; then
+  # libFuzzer adds new inputs to the first corpus folder only.
+  if ! "$binary" -max_total_time="$seconds" -print_final_stats=1 -artifact_prefix="$out/$target-" \
+      "$out/new/$target" "$repo/fuzz/corpus/$target" > "$out/$target.log" 2>&1; then
     status=1
     grep -E "ERROR|SUMMARY|artifact" "$out/$target.log" || tail -20 "$out/$target.log"
   fi
