@@ -8,6 +8,10 @@ for path in \
   lib/liblidar_deskew_core.so \
   lib/liblidar_deskew_sim.so \
   lib/liblidar_deskew_ros.so \
+  lib/liblidar_deskew_node.so \
+  lib/liblidar_deskew_bag.so \
+  lib/liblidar_deskew_sim_bag.so \
+  lib/liblidar_deskew_eval.so \
   lib/lidar_deskew/deskew_core_demo \
   lib/lidar_deskew/deskew_simulate \
   lib/lidar_deskew/deskew_metrics \
@@ -15,6 +19,10 @@ for path in \
   include/lidar_deskew/core/rebin.h \
   include/lidar_deskew/sim/sim.h \
   include/lidar_deskew/ros/tf_motion.h \
+  include/lidar_deskew/ros/scan_pipeline.h \
+  include/lidar_deskew/node/laser_scan_deskew_node.h \
+  include/lidar_deskew/bag/bag_deskew.h \
+  include/lidar_deskew/eval/evaluate.h \
   share/lidar_deskew/package.xml \
   share/lidar_deskew/nodelets.xml \
   share/lidar_deskew/launch/core_demo.launch \
@@ -34,5 +42,7 @@ if [ $status -eq 0 ]; then
     { echo "installed demo did not run"; status=1; }
   (set +u; source "$prefix/setup.bash"; "$prefix/lib/lidar_deskew/deskew_simulate" --list | grep -q "ILD26TRI/high/arc") ||
     { echo "installed deskew_simulate did not run"; status=1; }
+  (set +u; source "$prefix/setup.bash"; "$prefix/lib/lidar_deskew/deskew_bag" --help | grep -q "usage:") ||
+    { echo "installed deskew_bag did not run"; status=1; }
 fi
 exit $status

@@ -5,10 +5,10 @@
 #include <cstdio>
 #include <string>
 
-#include "lidar_deskew/ros/evaluate.h"
-#include "lidar_deskew/ros/sim_bag.h"
+#include "lidar_deskew/eval/evaluate.h"
+#include "lidar_deskew/sim/sim_bag.h"
 
-namespace lidar_deskew::ros_adapter {
+namespace lidar_deskew::eval {
 namespace {
 
 Evaluation simulateAndEvaluate(const std::string& scenario, bool noise, double tf_rate = 50.0,
@@ -17,11 +17,11 @@ Evaluation simulateAndEvaluate(const std::string& scenario, bool noise, double t
   for (char c : scenario)
     stem += (c == '/' ? '_' : c);
   const std::string bag = stem + ".bag", truth = stem + ".truth";
-  SimBagOptions options;
+  sim::SimBagOptions options;
   options.noise = noise;
   options.tf_rate = tf_rate;
   const sim::Scenario found = sim::findScenario(scenario);
-  writeSimulationBag(clockwise ? sim::clockwiseVariant(found) : found, options, bag, truth);
+  sim::writeSimulationBag(clockwise ? sim::clockwiseVariant(found) : found, options, bag, truth);
   const Evaluation result = evaluateBag(bag, truth, EvaluateOptions());
   std::remove(bag.c_str());
   std::remove(truth.c_str());
@@ -94,4 +94,4 @@ TEST(PaperCases, NoiseOnLeavesOnlyTheSensorNoise) {
 }
 
 }  // namespace
-}  // namespace lidar_deskew::ros_adapter
+}  // namespace lidar_deskew::eval

@@ -1,4 +1,4 @@
-// Fault injection against the live node with a real roscore (DESIGN §5). Each test states the expected
+// Fault injection against the live node with a real roscore (docs/FAULTS.md). Each test states the expected
 // behaviour and checks it, including the diagnostics counters.
 #include <gtest/gtest.h>
 

@@ -13,6 +13,7 @@
 #include <string>
 
 #include "lidar_deskew/sim/sim.h"
+#include "support/tf_tree.h"
 
 namespace lidar_deskew::test {
 
@@ -21,6 +22,9 @@ class LiveRig {
   /// Advertises /tf, /tf_static (latched) and `scan` in namespace `ns`; t = 0 of the simulation is
   /// ros::Time::now(). With `ns`, only the diagnostics of a deskew named in it are read.
   explicit LiveRig(const sim::LidarModel& lidar = sim::LidarModel::utm30lx360(), const std::string& ns = "");
+
+  /// Publishes `tree` from now on (call before connect()).
+  void useTree(const TfTree& tree) { tree_ = tree; }
 
   /// Takes t = 0 from `other`, so that one rig's tf serves both rigs' scans.
   void shareClockWith(const LiveRig& other) { epoch_ = other.epoch_; }
@@ -36,7 +40,8 @@ class LiveRig {
 
   /// Waits until the deskew is connected to /tf and /tf_static, then publishes base_link -> laser.
   void publishMount();
-  /// Publishes a new base_link -> laser on /tf_static (as a recalibration would); later scans use it.
+  /// Publishes a new mount on /tf_static (as a recalibration would), through the tree's static links;
+  /// later scans use it.
   void setMount(const sim::Pose2& new_mount);
   /// Publishes parent -> child on /tf_static, stamped at t = 0 (only this transform in the message).
   void publishStatic(const std::string& parent, const std::string& child, const sim::Pose2& pose);
@@ -77,6 +82,7 @@ class LiveRig {
   std::size_t history_ = static_cast<std::size_t>(-1);
   ros::Time epoch_;
   double tf_until_ = -0.1;
+  TfTree tree_;
   ros::Publisher tf_publisher_, tf_static_publisher_;
   ros::Subscriber scan_subscriber_, cloud_subscriber_, diagnostics_subscriber_;
   std::deque<sensor_msgs::LaserScan::ConstPtr> scans_;

@@ -9,20 +9,6 @@
 #include "lidar_deskew/ros/conversions.h"
 
 namespace lidar_deskew::test {
-namespace {
-
-geometry_msgs::TransformStamped stamped(const std::string& parent, const std::string& child,
-                                        const ros::Time& stamp, const sim::Pose2& pose) {
-  geometry_msgs::TransformStamped transform;
-  transform.header.frame_id = parent;
-  transform.header.stamp = stamp;
-  transform.child_frame_id = child;
-  transform.transform = ros_adapter::toTransform(
-      mrpt::poses::CPose3D::FromXYZYawPitchRoll(pose.x, pose.y, 0.0, pose.yaw, 0.0, 0.0));
-  return transform;
-}
-
-}  // namespace
 
 LiveRig::LiveRig(const sim::LidarModel& lidar, const std::string& ns)
     : world(sim::World::demoRoom()),
@@ -92,7 +78,10 @@ void LiveRig::publishMount() {
 
 void LiveRig::setMount(const sim::Pose2& new_mount) {
   mount = new_mount;
-  publishStatic("base_link", "laser", mount);
+  // All static links in one latched message: moving -> base, base -> (plate ->) laser.
+  tf2_msgs::TFMessage message;
+  message.transforms = staticLinks(tree_, mount, epoch_);
+  tf_static_publisher_.publish(message);
 }
 
 void LiveRig::publishStatic(const std::string& parent, const std::string& child, const sim::Pose2& pose) {
@@ -106,7 +95,8 @@ void LiveRig::publishTfUntil(double t) {
     tf_until_ = std::max(tf_until_, t - 1.0);
   for (double sample = std::round(tf_until_ / 0.02) * 0.02 + 0.02; sample <= t + 1e-9; sample += 0.02) {
     tf2_msgs::TFMessage message;
-    message.transforms.push_back(stamped("odom", "base_link", stampOf(sample), trajectory.pose(sample)));
+    message.transforms.push_back(
+        stamped(tree_.fixed, tree_.moving, stampOf(sample), trajectory.pose(sample)));
     tf_publisher_.publish(message);
     tf_until_ = sample;
   }
@@ -115,17 +105,7 @@ void LiveRig::publishTfUntil(double t) {
 sim::SimulatedScan LiveRig::publishScan(double t,
                                         const std::function<void(sensor_msgs::LaserScan&)>& modify) {
   const sim::SimulatedScan simulated = sim::simulateScan(world, trajectory, mount, model, epoch_.toNSec(), t);
-  sensor_msgs::LaserScan scan;
-  scan.header.stamp = ros_adapter::toRosTime(simulated.scan.stamp);
-  scan.header.frame_id = "laser";
-  scan.angle_min = simulated.scan.angle_min;
-  scan.angle_max = simulated.scan.angle_max;
-  scan.angle_increment = simulated.scan.angle_increment;
-  scan.time_increment = simulated.scan.time_increment;
-  scan.scan_time = simulated.scan.scan_time;
-  scan.range_min = simulated.scan.range_min;
-  scan.range_max = simulated.scan.range_max;
-  scan.ranges = simulated.scan.ranges;
+  sensor_msgs::LaserScan scan = scanMessage(simulated, tree_.laser);
   if (modify)
     modify(scan);
   scan_publisher.publish(scan);

@@ -4,7 +4,7 @@
 #include <gtest/gtest.h>
 #include <nodelet/loader.h>
 
-#include "lidar_deskew/ros/deskew_node.h"
+#include "lidar_deskew/node/laser_scan_deskew_node.h"
 #include "live_rig.h"
 
 namespace lidar_deskew::test {
@@ -21,7 +21,7 @@ TEST(ZeroCopy, SameTypeSubscriberInTheManagerGetsThePublishedObject) {
   std::vector<std::pair<const void*, const void*>> received;  // (received object, last published object)
   const ros::Subscriber subscriber = nh.subscribe<ros_adapter::DeskewedCloud>(
       "scan_deskewed_points", 10, [&](const boost::shared_ptr<const ros_adapter::DeskewedCloud>& cloud) {
-        received.emplace_back(cloud.get(), ros_adapter::LaserScanDeskewNode::lastPublishedCloud());
+        received.emplace_back(cloud.get(), node::LaserScanDeskewNode::lastPublishedCloud());
       });
   ASSERT_TRUE(rig.waitFor([&] { return rig.scan_publisher.getNumSubscribers() == 1; }, 5.0));
   rig.publishMount();
@@ -46,7 +46,7 @@ TEST(Parameters, BadValueIsNamedAndNothingStartsHalfConfigured) {
     private_nh.deleteParam("");
     private_nh.setParam(name, value);
     try {
-      ros_adapter::LaserScanDeskewNode node(nh, private_nh, "bad_params");
+      node::LaserScanDeskewNode node(nh, private_nh, "bad_params");
     } catch (const core::InvalidInput& error) {
       return error.field();
     }
@@ -71,7 +71,7 @@ TEST(Parameters, BadValueIsNamedAndNothingStartsHalfConfigured) {
   // The check sees a node that did start: a good value advertises both outputs.
   private_nh.deleteParam("");
   private_nh.setParam("tf_timeout", 0.5);
-  ros_adapter::LaserScanDeskewNode node(nh, private_nh, "bad_params");
+  node::LaserScanDeskewNode node(nh, private_nh, "bad_params");
   EXPECT_EQ(advertised(), 2);
 }
 

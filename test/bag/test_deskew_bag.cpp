@@ -1,0 +1,491 @@
+// deskew_bag on real bag files: simulated recordings scored against truth (ordinary tf trees, a mount
+// re-published mid-recording, a long bag with a tf gap), the real Neato XV-11 recording, bad input and
+// the command line as users type it. No roscore.
+#include <gtest/gtest.h>
+#include <rosbag/bag.h>
+#include <rosbag/view.h>
+#include <sensor_msgs/PointCloud2.h>
+#include <sensor_msgs/point_cloud2_iterator.h>
+#include <tf2_msgs/TFMessage.h>
+
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <map>
+
+#include "lidar_deskew/bag/bag_deskew.h"
+#include "lidar_deskew/eval/consistency.h"
+#include "lidar_deskew/ros/conversions.h"
+#include "lidar_deskew/sim/sim_bag.h"
+#include "support/tf_tree.h"
+
+namespace lidar_deskew::bag {
+namespace {
+
+using ros_adapter::toNs;
+using sim::SimBagOptions;
+using sim::writeSimulationBag;
+
+const std::string kNeatoBag = std::string(LIDAR_DESKEW_SOURCE_DIR) + "/data/neato_xv11/test_drive.bag";
+
+std::string temporary(const std::string& name) {
+  return ::testing::TempDir() + "/deskew_bag_" + std::to_string(::getpid()) + "_" + name;
+}
+
+std::map<std::string, std::size_t> topicCounts(const std::string& path) {
+  rosbag::Bag bag(path, rosbag::bagmode::Read);
+  std::map<std::string, std::size_t> counts;
+  for (const rosbag::MessageInstance& message : rosbag::View(bag))
+    ++counts[message.getTopic()];
+  return counts;
+}
+
+template <typename M>
+std::vector<boost::shared_ptr<M>> read(const std::string& path, const std::string& topic) {
+  rosbag::Bag bag(path, rosbag::bagmode::Read);
+  std::vector<boost::shared_ptr<M>> messages;
+  for (const rosbag::MessageInstance& message : rosbag::View(bag, rosbag::TopicQuery(topic)))
+    messages.push_back(message.instantiate<M>());
+  return messages;
+}
+
+std::string errorOf(const BagDeskewOptions& options) {
+  try {
+    deskewBag(options);
+  } catch (const std::runtime_error& error) {
+    return error.what();
+  }
+  return "";
+}
+
+TEST(DeskewBag, SimulatedRecordingAgainstTruth) {
+  const std::string input = temporary("sim.bag"), truth_path = temporary("sim.truth"),
+                    output = temporary("out.bag");
+  writeSimulationBag(sim::findScenario("ILD26TRI/normal/arc"), SimBagOptions(), input, truth_path);
+  BagDeskewOptions options;
+  options.input = input;
+  options.output = output;
+  options.scan_topics = {"/scan"};
+  const BagDeskewSummary summary = deskewBag(options);
+  EXPECT_EQ(summary.counters.at("/scan").received, 8u);
+  EXPECT_EQ(summary.counters.at("/scan").published, 8u);
+
+  // Every input message is there unchanged in number, plus the two outputs per scan.
+  const auto in = topicCounts(input), out = topicCounts(output);
+  for (const auto& [topic, count] : in)
+    EXPECT_EQ(out.at(topic), count) << topic;
+  EXPECT_EQ(out.at("/scan_deskewed"), 8u);
+  EXPECT_EQ(out.at("/scan_deskewed_points"), 8u);
+
+  // The written clouds lie on the true walls (noise off: < 0.5 mm RMS; raw is decimetres).
+  const sim::Truth truth = sim::readTruth(truth_path);
+  std::vector<double> distances;
+  for (const auto& cloud : read<sensor_msgs::PointCloud2>(output, "/scan_deskewed_points")) {
+    const sim::Pose2 laser = truth.laserPose(toNs(cloud->header.stamp));
+    for (sensor_msgs::PointCloud2ConstIterator<float> x(*cloud, "x"), y(*cloud, "y"); x != x.end();
+         ++x, ++y) {
+      distances.push_back(truth.world.distanceTo(laser.apply({*x, *y})));
+    }
+  }
+  EXPECT_GT(distances.size(), 8u * 300u);
+  EXPECT_LT(sim::errorStats(distances).rms, 0.5e-3);
+  // The corrected scans keep the input grid.
+  const auto raw = read<sensor_msgs::LaserScan>(output, "/scan");
+  const auto corrected = read<sensor_msgs::LaserScan>(output, "/scan_deskewed");
+  ASSERT_EQ(raw.size(), corrected.size());
+  for (std::size_t k = 0; k < raw.size(); ++k) {
+    EXPECT_EQ(corrected[k]->ranges.size(), raw[k]->ranges.size());
+    EXPECT_EQ(corrected[k]->angle_min, raw[k]->angle_min);
+    EXPECT_EQ(corrected[k]->angle_increment, raw[k]->angle_increment);
+  }
+
+  // --replace: the corrected scan under the original name, the raw one kept as /scan_raw; compressed.
+  for (const std::string compression : {"bz2", "lz4"}) {
+    options.replace = true;
+    options.compression = compression;
+    options.output = temporary("replace.bag");
+    deskewBag(options);
+    const auto replaced = topicCounts(options.output);
+    EXPECT_EQ(replaced.at("/scan"), 8u);
+    EXPECT_EQ(replaced.at("/scan_raw"), 8u);
+    EXPECT_EQ(read<sensor_msgs::LaserScan>(options.output, "/scan").front()->time_increment, 0.0f);
+    EXPECT_NE(read<sensor_msgs::LaserScan>(options.output, "/scan_raw").front()->time_increment, 0.0f);
+    std::remove(options.output.c_str());
+  }
+  std::remove(input.c_str());
+  std::remove(truth_path.c_str());
+  std::remove(output.c_str());
+}
+
+TEST(DeskewBag, RealNeatoRecording) {
+  const std::string output = temporary("neato.bag");
+  BagDeskewOptions options;
+  options.input = kNeatoBag;
+  options.output = output;
+  options.scan_topics = {"/stable_scan"};
+  options.params.timing.stamp_at = core::StampAt::kEnd;
+  std::string notes;
+  options.inform = [&](const std::string& note) { notes += note + "\n"; };
+  const BagDeskewSummary summary = deskewBag(options);
+  const ros_adapter::PipelineCounters& counters = summary.counters.at("/stable_scan");
+  EXPECT_EQ(counters.received, 60u);
+  // The first and last scans lie outside the 5-7 Hz odometry: dropped and counted, never extrapolated.
+  EXPECT_EQ(counters.published + counters.dropped_tf, 60u);
+  EXPECT_GE(counters.published, 55u);
+  // One rule, as live: the laser's frame is published on /tf, so its conflicting /tf_static parent is
+  // left out and said (with both poses); so is the static base_footprint -> base_link (base_link moves).
+  EXPECT_EQ(counters.statics_ignored, 2u);
+  EXPECT_NE(notes.find("ignoring /tf_static base_link -> base_laser_link (x 0.000 y 0.000 z 0.130 m"),
+            std::string::npos)
+      << notes;
+  EXPECT_NE(notes.find("base_laser_link moves on /tf (from base_link, x -0.102"), std::string::npos) << notes;
+  EXPECT_NE(notes.find("ignoring /tf_static base_footprint -> base_link"), std::string::npos) << notes;
+
+  const auto in = topicCounts(kNeatoBag), out = topicCounts(output);
+  for (const auto& [topic, count] : in)
+    EXPECT_EQ(out.at(topic), count) << topic;
+  const auto raw = read<sensor_msgs::LaserScan>(output, "/stable_scan");
+  std::map<std::uint32_t, sensor_msgs::LaserScan::ConstPtr> raw_by_seq;
+  for (const auto& scan : raw)
+    raw_by_seq[scan->header.seq] = scan;
+  for (const auto& scan : read<sensor_msgs::LaserScan>(output, "/stable_scan_deskewed")) {
+    const auto& input = raw_by_seq.at(scan->header.seq);
+    EXPECT_EQ(scan->ranges.size(), input->ranges.size());  // the grid gmapping was given
+    EXPECT_EQ(scan->angle_min, input->angle_min);
+    EXPECT_EQ(scan->angle_increment, input->angle_increment);
+    for (float range : scan->ranges)
+      EXPECT_FALSE(std::isnan(range));
+  }
+  for (const auto& cloud : read<sensor_msgs::PointCloud2>(output, "/stable_scan_deskewed_points")) {
+    for (sensor_msgs::PointCloud2ConstIterator<float> x(*cloud, "x"); x != x.end(); ++x) {
+      EXPECT_TRUE(std::isfinite(x[0]) && std::isfinite(x[1]) && std::isfinite(x[2]));
+    }
+  }
+  // While turning, consecutive corrected scans agree better in the odom frame than the raw ones.
+  const eval::ConsistencyReport report =
+      eval::measureConsistency(output, "/stable_scan", "/stable_scan_deskewed", options.params);
+  std::printf("Neato turning pairs %zu: raw %.1f mm, corrected %.1f mm\n", report.turning_pairs,
+              report.raw_mm, report.corrected_mm);
+  EXPECT_GE(report.turning_pairs, 5u);
+  EXPECT_LT(report.corrected_mm, report.raw_mm);
+  std::remove(output.c_str());
+}
+
+TEST(DeskewBag, BadInputGivesAClearErrorAndNoOutput) {
+  BagDeskewOptions options;
+  options.scan_topics = {"/stable_scan"};
+  // The output over the input.
+  options.input = kNeatoBag;
+  options.output = kNeatoBag;
+  EXPECT_NE(errorOf(options).find("refusing"), std::string::npos);
+
+  // A truncated bag and a corrupt one.
+  const std::string truncated = temporary("truncated.bag"), corrupt = temporary("corrupt.bag");
+  {
+    std::ifstream in(kNeatoBag, std::ios::binary);
+    std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    std::ofstream(truncated, std::ios::binary) << bytes.substr(0, bytes.size() / 2);
+    for (std::size_t i = 4096; i < bytes.size(); i += 97)
+      bytes[i] = static_cast<char>(bytes[i] ^ 0x5a);
+    std::ofstream(corrupt, std::ios::binary) << bytes;
+  }
+  for (const std::string& input : {truncated, corrupt, temporary("missing.bag")}) {
+    options.input = input;
+    options.output = temporary("bad_out.bag");
+    const std::string error = errorOf(options);
+    EXPECT_FALSE(error.empty()) << input;
+    EXPECT_FALSE(std::filesystem::exists(options.output)) << input;
+    std::printf("%s: %s\n", input.c_str(), error.c_str());
+  }
+
+  // A bag without the motion's tf: the error names the frames.
+  const std::string no_tf = temporary("no_tf.bag");
+  {
+    rosbag::Bag bag(no_tf, rosbag::bagmode::Write);
+    rosbag::Bag in(kNeatoBag, rosbag::bagmode::Read);
+    for (const rosbag::MessageInstance& message : rosbag::View(in)) {
+      if (message.getTopic() != "/tf")
+        bag.write(message.getTopic(), message.getTime(), message);
+    }
+    // keep the mount, on /tf_static
+  }
+  options.input = no_tf;
+  const std::string error = errorOf(options);
+  EXPECT_NE(error.find("'odom'"), std::string::npos) << error;
+  EXPECT_NE(error.find("'base_link'"), std::string::npos) << error;
+  EXPECT_FALSE(std::filesystem::exists(options.output));
+  for (const std::string& path : {truncated, corrupt, no_tf})
+    std::remove(path.c_str());
+}
+
+/// Writes `drive` as a robot records it: the static links on a latched /tf_static at the start, /tf at
+/// 50 Hz from 0.1 s before the first scan to 0.1 s after the last, scans recorded at their sweep's end.
+/// `before_scan(k)` may change the drive (a new mount is then re-published, latched, before scan k).
+void writeDriveBag(const std::string& path, test::Drive& drive, int scans,
+                   const std::function<bool(int)>& remount = {}) {
+  rosbag::Bag bag(path, rosbag::bagmode::Write);
+  // As `rosbag record` stores a latched publisher's connection (rosbag wants the type fields too).
+  using Traits = ros::message_traits::DataType<tf2_msgs::TFMessage>;
+  const auto latched = boost::make_shared<ros::M_string>(
+      ros::M_string{{"callerid", "/robot_state_publisher"},
+                    {"latching", "1"},
+                    {"type", Traits::value()},
+                    {"md5sum", ros::message_traits::MD5Sum<tf2_msgs::TFMessage>::value()},
+                    {"message_definition", ros::message_traits::Definition<tf2_msgs::TFMessage>::value()}});
+  const auto writeStatics = [&](double t) {
+    tf2_msgs::TFMessage message;
+    message.transforms = drive.statics();
+    bag.write("/tf_static", drive.stampOf(t), message, latched);
+  };
+  writeStatics(-0.1);
+  const double period = 1.0 / drive.model.rate;
+  double tf_until = -0.12;
+  for (int k = 0; k < scans; ++k) {
+    const double start = 0.1 + k * period;
+    if (remount && remount(k))
+      writeStatics(start);
+    for (; tf_until + 0.02 <= start + period + 1e-9; tf_until += 0.02) {
+      tf2_msgs::TFMessage message;
+      message.transforms.push_back(drive.motionAt(tf_until + 0.02));
+      bag.write("/tf", drive.stampOf(tf_until + 0.02), message);
+    }
+    bag.write("/scan", drive.stampOf(start + period), *drive.scanAt(start));
+  }
+  for (int extra = 0; extra < 5; ++extra, tf_until += 0.02) {
+    tf2_msgs::TFMessage message;
+    message.transforms.push_back(drive.motionAt(tf_until + 0.02));
+    bag.write("/tf", drive.stampOf(tf_until + 0.02), message);
+  }
+}
+
+/// Distances [m] to the true walls of every corrected point in `output`'s /scan_deskewed_points, the
+/// laser placed by `drive` (its mount as `mount_at(reference time)` says).
+std::vector<double> cloudDistances(const std::string& output, test::Drive drive,
+                                   const std::function<sim::Pose2(double)>& mount_at) {
+  std::vector<double> distances;
+  for (const auto& cloud : read<sensor_msgs::PointCloud2>(output, "/scan_deskewed_points")) {
+    drive.mount = mount_at(drive.secondsOf(cloud->header.stamp));
+    std::vector<Eigen::Vector2d> points;
+    for (sensor_msgs::PointCloud2ConstIterator<float> x(*cloud, "x"), y(*cloud, "y"); x != x.end(); ++x, ++y)
+      points.emplace_back(*x, *y);
+    struct Xy {
+      double x, y;
+    };
+    std::vector<Xy> xy;
+    for (const auto& p : points)
+      xy.push_back({p.x(), p.y()});
+    for (double d : drive.distances(xy, cloud->header.stamp))
+      distances.push_back(d);
+  }
+  return distances;
+}
+
+// A recalibration mid-recording (/tf_static re-published with a new mount): each scan is corrected
+// with the mount in force when it was recorded, as the live node does; the output keeps /tf_static
+// latched, so a node joining a replay of it gets the mount.
+TEST(DeskewBag, MountRepublishedMidRecordingServesTheScansAfterIt) {
+  test::Drive drive;
+  const sim::Pose2 first = drive.mount, second{0.10, -0.20, 0.5};  // moved 0.26 m, turned 0.4 rad
+  const std::string input = temporary("remount.bag"), output = temporary("remount_out.bag");
+  writeDriveBag(input, drive, 16, [&](int k) {
+    if (k != 8)
+      return false;
+    drive.mount = second;
+    return true;
+  });
+  BagDeskewOptions options;
+  options.input = input;
+  options.output = output;
+  const BagDeskewSummary summary = deskewBag(options);
+  EXPECT_EQ(summary.chosen_topics, std::vector<std::string>{"/scan"});
+  EXPECT_EQ(summary.counters.at("/scan").published, 16u);
+  EXPECT_EQ(summary.counters.at("/scan").mount_changes, 1u);
+  const double switch_time = 0.1 + 8 * (1.0 / drive.model.rate);
+  const auto errors =
+      cloudDistances(output, drive, [&](double t) { return t < switch_time - 1e-6 ? first : second; });
+  EXPECT_GT(errors.size(), 16u * 1000u);
+  EXPECT_LT(sim::errorStats(errors).rms, 1e-3);  // one mount for all (0.1.0): decimetres after the switch
+
+  rosbag::Bag bag(output, rosbag::bagmode::Read);
+  std::size_t latched = 0;
+  for (const rosbag::ConnectionInfo* connection :
+       rosbag::View(bag, rosbag::TopicQuery("/tf_static")).getConnections()) {
+    const auto latching = connection->header->find("latching");
+    latched += latching != connection->header->end() && latching->second == "1";
+  }
+  EXPECT_GE(latched, 1u);
+  std::remove(input.c_str());
+  std::remove(output.c_str());
+}
+
+// Ordinary trees (docs/FAULTS.md): REP-105 (a static base_footprint -> base_link under a moving
+// base_footprint), a mount through a plate, the laser frame as the base frame, leading slashes.
+TEST(DeskewBag, OrdinaryTreesAreCorrectedOntoTheTrueWalls) {
+  for (const std::string name : {"rep105", "plate", "base", "slash"}) {
+    test::Drive drive(test::TfTree::named(name));
+    const std::string input = temporary(name + ".bag"), output = temporary(name + "_out.bag");
+    writeDriveBag(input, drive, 12);
+    BagDeskewOptions options;
+    options.input = input;
+    options.output = output;
+    options.params.fixed_frame = ros_adapter::normalizedFrame(drive.tree.fixed);
+    options.params.base_frame = ros_adapter::normalizedFrame(drive.tree.base);
+    const BagDeskewSummary summary = deskewBag(options);
+    EXPECT_EQ(summary.counters.at("/scan").published, 12u) << name;
+    EXPECT_EQ(summary.counters.at("/scan").statics_ignored, 0u) << name;
+    const auto errors = cloudDistances(output, drive, [&](double) { return drive.mount; });
+    std::printf("%-7s cloud %.3f mm RMS\n", name.c_str(), 1e3 * sim::errorStats(errors).rms);
+    EXPECT_LT(sim::errorStats(errors).rms, 1e-3) << name;
+    std::remove(input.c_str());
+    std::remove(output.c_str());
+  }
+}
+
+// A long bag (100 s of 50 Hz tf, 5000 samples): the early scans keep their knots (0.1.0 kept the newest
+// 4096 sample times of the whole bag: 30 mm RMS in the first 17 s), and a 1 s tf gap early on is
+// refused like live, not bridged.
+TEST(DeskewBag, LongBagKeepsItsKnotsAndRefusesGaps) {
+  const std::string recorded = temporary("long_recorded.bag"), input = temporary("long.bag"),
+                    truth_path = temporary("long.truth"), output = temporary("long_out.bag");
+  sim::Scenario scenario = sim::findScenario("ILD26TRI/high/arc");
+  scenario.duration = 100.0;
+  writeSimulationBag(scenario, SimBagOptions(), recorded, truth_path);
+  const sim::Truth truth = sim::readTruth(truth_path);
+  // Cut the tf between 5 and 6 s after the start.
+  double begin = -1.0;
+  {
+    rosbag::Bag in(recorded, rosbag::bagmode::Read), out(input, rosbag::bagmode::Write);
+    for (const rosbag::MessageInstance& message : rosbag::View(in)) {
+      if (begin < 0.0)
+        begin = message.getTime().toSec();
+      const double t = message.getTime().toSec() - begin;
+      if (message.getTopic() == "/tf" && t > 5.0 && t < 6.0)
+        continue;
+      out.write(message.getTopic(), message.getTime(), message, message.getConnectionHeader());
+    }
+  }
+  BagDeskewOptions options;
+  options.input = input;
+  options.output = output;
+  const BagDeskewSummary summary = deskewBag(options);
+  const ros_adapter::PipelineCounters& counters = summary.counters.at("/scan");
+  EXPECT_EQ(counters.received, 800u);
+  EXPECT_GE(counters.tf_gaps, 1u);  // the sweeps across the gap are refused
+  EXPECT_EQ(counters.published + counters.dropped_tf, 800u);
+  EXPECT_LE(counters.dropped_tf, 12u);
+  std::vector<double> early, late;
+  for (const auto& cloud : read<sensor_msgs::PointCloud2>(output, "/scan_deskewed_points")) {
+    const sim::Pose2 laser = truth.laserPose(toNs(cloud->header.stamp));
+    const double t = cloud->header.stamp.toSec() - begin;
+    for (sensor_msgs::PointCloud2ConstIterator<float> x(*cloud, "x"), y(*cloud, "y"); x != x.end(); ++x, ++y)
+      (t < 17.0 ? early : late).push_back(truth.world.distanceTo(laser.apply({*x, *y})));
+  }
+  std::printf("long bag: first 17 s %.3f mm RMS (%.1f max), after %.3f mm RMS; %llu tf gaps\n",
+              1e3 * sim::errorStats(early).rms, 1e3 * sim::errorStats(early).max,
+              1e3 * sim::errorStats(late).rms, static_cast<unsigned long long>(counters.tf_gaps));
+  EXPECT_LT(sim::errorStats(early).rms, 1e-3);
+  EXPECT_LT(sim::errorStats(early).max, 10e-3);  // no scan bridged the 1 s gap
+  EXPECT_LT(sim::errorStats(late).rms, 1e-3);
+  for (const std::string& path : {recorded, input, truth_path, output})
+    std::remove(path.c_str());
+}
+
+/// Runs the deskew_bag executable; returns its exit status and what it printed (stdout and stderr).
+int runTool(const std::vector<std::string>& args, std::string& printed,
+            const std::function<void(pid_t)>& meanwhile = {}) {
+  const std::string log = temporary("tool.log");
+  const pid_t pid = fork();
+  if (pid == 0) {
+    FILE* out = std::freopen(log.c_str(), "w", stdout);
+    (void)out;
+    dup2(fileno(stdout), fileno(stderr));
+    std::vector<char*> argv{const_cast<char*>(LIDAR_DESKEW_BAG_TOOL)};
+    for (const std::string& arg : args)
+      argv.push_back(const_cast<char*>(arg.c_str()));
+    argv.push_back(nullptr);
+    execv(LIDAR_DESKEW_BAG_TOOL, argv.data());
+    _exit(127);
+  }
+  if (meanwhile)
+    meanwhile(pid);
+  int status = 0;
+  waitpid(pid, &status, 0);
+  std::ifstream in(log);
+  printed.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  std::remove(log.c_str());
+  return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+}
+
+// The command line as users type it.
+TEST(DeskewBagTool, CommandLine) {
+  std::string printed;
+  EXPECT_EQ(runTool({"--help"}, printed), 0);
+  EXPECT_NE(printed.find("usage:"), std::string::npos);
+  EXPECT_NE(printed.find("tf_timeout"), std::string::npos);  // the parameters are listed
+
+  EXPECT_EQ(runTool({kNeatoBag, temporary("x.bag"), "--tf-timout", "0.1"}, printed), 2);
+  EXPECT_NE(printed.find("unknown option --tf-timout"), std::string::npos) << printed;
+  EXPECT_EQ(runTool({kNeatoBag, temporary("x.bag"), "--max-extrapolation", "0.1"}, printed), 2);
+  EXPECT_NE(printed.find("live node only"), std::string::npos) << printed;
+
+  EXPECT_EQ(runTool({kNeatoBag, temporary("x.bag"), "--scan-topic", "/laser_scan"}, printed), 1);
+  EXPECT_NE(printed.find("no LaserScan on /laser_scan; its LaserScan topics: /scan, /stable_scan"),
+            std::string::npos)
+      << printed;
+  EXPECT_FALSE(std::filesystem::exists(temporary("x.bag")));
+
+  const std::string output = temporary("chosen.bag");
+  EXPECT_EQ(runTool({kNeatoBag, output, "--stamp-at", "end"}, printed), 0) << printed;
+  EXPECT_NE(printed.find("correcting /scan, /stable_scan (the bag's LaserScan topics)"), std::string::npos)
+      << printed;
+  // The summary has the node's diagnostics counters, by the same names.
+  EXPECT_NE(printed.find("/stable_scan: received 60, published 57, passed through 0"), std::string::npos)
+      << printed;
+  EXPECT_NE(printed.find("dropped: tf 3"), std::string::npos) << printed;
+  std::remove(output.c_str());
+}
+
+// Ctrl-C or SIGTERM mid-run removes the temporary file; no output, exit 130.
+TEST(DeskewBagTool, InterruptedRunLeavesNothingBehind) {
+  const std::string input = temporary("interrupt.bag"), truth_path = temporary("interrupt.truth"),
+                    output = temporary("interrupt_out.bag");
+  sim::Scenario scenario = sim::findScenario("UTM-30LX/normal/arc");
+  scenario.duration = 60.0;  // 2400 scans of 1440 beams: about a second of work
+  writeSimulationBag(scenario, SimBagOptions(), input, truth_path);
+  const std::filesystem::path folder = std::filesystem::path(output).parent_path();
+  const auto temporaries = [&] {
+    std::size_t count = 0;
+    for (const auto& entry : std::filesystem::directory_iterator(folder))
+      count += entry.path().filename().string().rfind(
+                   std::filesystem::path(output).filename().string() + ".tmp-", 0) == 0;
+    return count;
+  };
+  for (const int signal_number : {SIGINT, SIGTERM}) {
+    std::string printed;
+    bool seen = false;
+    const int status = runTool({input, output, "--quiet"}, printed, [&](pid_t pid) {
+      for (int wait = 0; wait < 20000 && !seen; ++wait) {  // up to 20 s for the temporary file to appear
+        seen = temporaries() > 0;
+        if (!seen)
+          usleep(500);
+      }
+      usleep(20000);
+      kill(pid, signal_number);
+    });
+    EXPECT_TRUE(seen);
+    EXPECT_EQ(status, 130) << printed;
+    EXPECT_NE(printed.find("interrupted"), std::string::npos) << printed;
+    EXPECT_EQ(temporaries(), 0u);
+    EXPECT_FALSE(std::filesystem::exists(output));
+  }
+  std::remove(input.c_str());
+  std::remove(truth_path.c_str());
+}
+
+}  // namespace
+}  // namespace lidar_deskew::bag

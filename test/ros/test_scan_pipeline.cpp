@@ -1,0 +1,186 @@
+// ScanPipeline, the one path of the live node and deskew_bag, fed by hand: real tf2 buffers, real
+// messages, the simulator's truth. The robot drives a 6 m/s, 5 rad/s arc; tf at 50 Hz; UTM-30LX scans.
+#include <gtest/gtest.h>
+
+#include "lidar_deskew/ros/scan_pipeline.h"
+#include "lidar_deskew/sim/sim.h"
+#include "support/tf_tree.h"
+
+namespace lidar_deskew::test {
+namespace {
+
+using ros_adapter::PipelineCounters;
+using ros_adapter::PipelineEvent;
+using ros_adapter::PipelineResult;
+using ros_adapter::ScanPipeline;
+
+constexpr double kTfPeriod = 0.02;
+
+/// A pipeline and everything it handed out.
+struct PipelineRun {
+  explicit PipelineRun(const Drive& drive_in, ros_adapter::DeskewParams params = {})
+      : drive(drive_in),
+        pipeline(
+            withFrames(params, drive_in.tree),
+            [this](const PipelineResult& result) { results.push_back(result); },
+            [this](PipelineEvent event, const std::string& text) { events.emplace_back(event, text); }) {}
+
+  static ros_adapter::DeskewParams withFrames(ros_adapter::DeskewParams params, const TfTree& tree) {
+    params.fixed_frame = tree.fixed;
+    params.base_frame = tree.base;
+    return params;
+  }
+  void statics(double now) { pipeline.addTransforms(drive.statics(), true, now); }
+  /// tf samples every 20 ms after the last one fed, up to t [s].
+  void tfUntil(double t) {
+    for (; tf_until + kTfPeriod <= t + 1e-9; tf_until += kTfPeriod)
+      pipeline.addTransforms({drive.motionAt(tf_until + kTfPeriod)}, false, tf_until + kTfPeriod);
+  }
+  /// One scan starting at t, then tf up to its end: returns its truth distances (empty when no output).
+  void scan(double t) {
+    pipeline.addScan(drive.scanAt(t), t + 1.0 / drive.model.rate);
+    tfUntil(t + 1.0 / drive.model.rate + kTfPeriod);
+  }
+  /// Distances of every corrected point handed out so far to the true walls [m].
+  std::vector<double> cloudDistances() const {
+    std::vector<double> all;
+    for (const PipelineResult& result : results) {
+      if (!result.corrected)
+        continue;
+      for (double d : drive.distances(result.outputs.cloud->points, result.outputs.scan->header.stamp))
+        all.push_back(d);
+    }
+    return all;
+  }
+  bool said(PipelineEvent event) const {
+    return std::any_of(events.begin(), events.end(), [&](const auto& e) { return e.first == event; });
+  }
+
+  Drive drive;
+  double tf_until = -0.1;
+  std::vector<PipelineResult> results;
+  std::vector<std::pair<PipelineEvent, std::string>> events;
+  ScanPipeline pipeline;
+};
+
+double rms(const std::vector<double>& values) {
+  return sim::errorStats(values).rms;
+}
+
+// Trees as robots have them: the same accuracy whatever links stand between the fixed frame and the
+// laser (statics before the motion, as a latched /tf_static arrives).
+TEST(ScanPipeline, OrdinaryTreesAreCorrectedOntoTheTrueWalls) {
+  for (const std::string name : {"default", "rep105", "plate", "base", "slash"}) {
+    PipelineRun run{Drive(TfTree::named(name))};
+    run.statics(0.0);
+    run.tfUntil(0.05);
+    for (int k = 0; k < 12; ++k)
+      run.scan(0.1 + k * 0.025);
+    const PipelineCounters& counters = run.pipeline.counters();
+    EXPECT_EQ(counters.published, 12u) << name;
+    EXPECT_EQ(counters.statics_ignored, 0u) << name;
+    const double error = rms(run.cloudDistances());
+    std::printf("%-8s cloud %.3f mm RMS over %zu scans\n", name.c_str(), 1e3 * error, run.results.size());
+    EXPECT_LT(error, 1e-3) << name;  // tf's own interpolation between 50 Hz samples on this arc
+    // The outputs keep the input's frame id as it was (a leading slash included).
+    ASSERT_FALSE(run.results.empty());
+    EXPECT_EQ(run.results.front().outputs.scan->header.frame_id, run.drive.tree.laser);
+  }
+}
+
+// REP-105 with the static link arriving after the motion has started: kept (base_link does not move).
+TEST(ScanPipeline, StaticBelowTheMovingFrameCountsWheneverItComes) {
+  PipelineRun run{Drive(TfTree::named("rep105"))};
+  run.tfUntil(0.05);
+  run.statics(0.05);
+  for (int k = 0; k < 8; ++k)
+    run.scan(0.1 + k * 0.025);
+  EXPECT_EQ(run.pipeline.counters().published, 8u);
+  EXPECT_LT(rms(run.cloudDistances()), 1e-3);
+}
+
+// A /tf_static parent of a frame that moves on /tf (a URDF's base_footprint -> base_link beside
+// odom -> base_link) would freeze tf's answer: it is left out and said once, whichever came first.
+TEST(ScanPipeline, StaticParentOfAMovingFrameIsLeftOutWhicheverCameFirst) {
+  for (const bool static_first : {true, false}) {
+    PipelineRun run{Drive()};
+    const auto frozen = stamped("base_footprint", "base_link", run.drive.stampOf(0.0), {0.5, 0.5, 1.0});
+    run.statics(0.0);
+    if (static_first)
+      run.pipeline.addTransforms({frozen}, true, 0.0);
+    run.tfUntil(0.05);
+    if (!static_first)
+      run.pipeline.addTransforms({frozen}, true, 0.05);
+    for (int k = 0; k < 8; ++k)
+      run.scan(0.1 + k * 0.025);
+    EXPECT_EQ(run.pipeline.counters().statics_ignored, 1u) << static_first;
+    EXPECT_TRUE(run.said(PipelineEvent::kStaticIgnored));
+    EXPECT_EQ(run.pipeline.counters().published, 8u) << static_first;
+    EXPECT_LT(rms(run.cloudDistances()), 1e-3) << static_first;
+  }
+}
+
+// A recalibration: /tf_static re-published with a new mount mid-stream serves the scans after it.
+TEST(ScanPipeline, RepublishedMountServesTheScansAfterIt) {
+  PipelineRun run{Drive()};
+  run.statics(0.0);
+  run.tfUntil(0.05);
+  for (int k = 0; k < 6; ++k)
+    run.scan(0.1 + k * 0.025);
+  const std::vector<double> before = run.cloudDistances();
+  run.results.clear();
+  run.drive.mount = {0.10, -0.20, 0.5};  // moved 0.26 m and turned 0.4 rad
+  run.statics(0.25);
+  for (int k = 6; k < 12; ++k)
+    run.scan(0.1 + k * 0.025);
+  EXPECT_EQ(run.pipeline.counters().published, 12u);
+  EXPECT_EQ(run.pipeline.counters().mount_changes, 1u);
+  EXPECT_LT(rms(before), 1e-3);
+  EXPECT_LT(rms(run.cloudDistances()), 1e-3);  // with the old mount: decimetres
+}
+
+// Waiting is measured on the owner's clock: a scan waits up to tf_timeout for tf, then fails.
+TEST(ScanPipeline, ScansWaitOnTheOwnersClockThenFail) {
+  for (const auto failure : {ros_adapter::OnTfFailure::kDrop, ros_adapter::OnTfFailure::kPassThrough}) {
+    ros_adapter::DeskewParams params;
+    params.tf_timeout = 0.2;
+    params.on_tf_failure = failure;
+    PipelineRun run(Drive(), params);
+    run.statics(0.0);
+    run.tfUntil(0.10);
+    run.pipeline.addScan(run.drive.scanAt(0.1), 0.125);  // tf covers only its first beam
+    run.pipeline.expire(0.3);
+    EXPECT_EQ(run.pipeline.waiting(), 1u);  // 0.175 s waited: still within tf_timeout
+    run.pipeline.expire(0.33);
+    EXPECT_EQ(run.pipeline.waiting(), 0u);
+    const bool drop = failure == ros_adapter::OnTfFailure::kDrop;
+    EXPECT_EQ(run.pipeline.counters().dropped_tf, drop ? 1u : 0u);
+    EXPECT_EQ(run.pipeline.counters().passed_through, drop ? 0u : 1u);
+    EXPECT_EQ(run.results.size(), drop ? 0u : 1u);
+    // Late tf that comes within tf_timeout is waited for: the next scan is corrected when it comes.
+    run.pipeline.addScan(run.drive.scanAt(0.2), 0.4);
+    run.pipeline.expire(0.5);
+    run.tfUntil(0.25);
+    EXPECT_EQ(run.pipeline.counters().published, 1u);
+    // flush(): nothing more will come (the end of a bag).
+    run.pipeline.addScan(run.drive.scanAt(0.3), 0.5);
+    run.pipeline.flush();
+    EXPECT_EQ(run.pipeline.waiting(), 0u);
+    EXPECT_EQ(run.pipeline.counters().dropped_tf + run.pipeline.counters().passed_through, 2u);
+  }
+}
+
+// A scan frame with no mount anywhere is dropped as such once its wait is over, named in the report.
+TEST(ScanPipeline, MissingMountIsDroppedAndNamed) {
+  PipelineRun run{Drive()};
+  run.tfUntil(0.2);
+  run.pipeline.addScan(run.drive.scanAt(0.1), 0.125);
+  run.pipeline.expire(1.0);
+  EXPECT_EQ(run.pipeline.counters().dropped_mount, 1u);
+  ASSERT_TRUE(run.said(PipelineEvent::kMountMissing));
+  EXPECT_NE(run.events.back().second.find("base_link -> laser"), std::string::npos)
+      << run.events.back().second;
+}
+
+}  // namespace
+}  // namespace lidar_deskew::test
