@@ -38,7 +38,15 @@ std::string joined(const std::vector<std::string>& items) {
 /// One scan topic: its pipeline, and the record times of the scans it still holds.
 struct TopicStream {
   std::unique_ptr<ros_adapter::ScanPipeline> pipeline;
-  std::deque<std::pair<const sensor_msgs::LaserScan*, ros::Time>> waiting;  // in arrival order
+  /// The scans queued in the pipeline and not yet resolved, in arrival order, with their record times:
+  /// the pipeline's queue is always the newest of them (trimmed after every call).
+  std::deque<std::pair<sensor_msgs::LaserScan::ConstPtr, ros::Time>> waiting;
+
+  /// Forgets the scans the pipeline no longer holds (served, dropped, or cleared by a time jump).
+  void trim() {
+    while (waiting.size() > pipeline->waiting())
+      waiting.pop_front();
+  }
 };
 
 }  // namespace
@@ -95,8 +103,8 @@ BagDeskewSummary deskewBag(const BagDeskewOptions& options) {
     // Each kind of note once per topic; the counts are in the summary.
     auto said = std::make_shared<std::set<PipelineEvent>>();
     const auto report = [inform, topic, said](PipelineEvent event, const std::string& text) {
-      const bool every_time = event == PipelineEvent::kMountChanged || event == PipelineEvent::kStaticIgnored;
-      if (every_time || said->insert(event).second)
+      // Statics left out are said once per frame by the pipeline already; mount changes, once here.
+      if (event == PipelineEvent::kStaticIgnored || said->insert(event).second)
         inform(topic + ": " + text);
     };
     stream.pipeline = std::make_unique<ros_adapter::ScanPipeline>(options.params, nullptr, report);
@@ -112,15 +120,13 @@ BagDeskewSummary deskewBag(const BagDeskewOptions& options) {
       // Outputs are written at their scan's record time, next to it in the bag.
       stream.pipeline->setPublish(
           [&output, &options, topic, owner](const ros_adapter::PipelineResult& result) {
-            ros::Time record_time;
-            while (!owner->waiting.empty()) {  // scans before this one were dropped or already written
-              const auto [scan, time] = owner->waiting.front();
+            // Served in arrival order: the scans before this one were dropped.
+            while (!owner->waiting.empty() && owner->waiting.front().first != result.input)
               owner->waiting.pop_front();
-              if (scan == result.input.get()) {
-                record_time = time;
-                break;
-              }
-            }
+            if (owner->waiting.empty())
+              throw std::logic_error("an output for a scan deskew_bag did not give");
+            const ros::Time record_time = owner->waiting.front().second;
+            owner->waiting.pop_front();
             output.write(options.replace ? topic : topic + "_deskewed", record_time, *result.outputs.scan);
             output.write(topic + "_deskewed_points", record_time, *result.outputs.cloud);
           });
@@ -143,8 +149,10 @@ BagDeskewSummary deskewBag(const BagDeskewOptions& options) {
         output.write(topic, message.getTime(), message, message.getConnectionHeader());
         if (topic == kTfTopic || topic == kTfStaticTopic) {
           if (const auto transforms = message.instantiate<tf2_msgs::TFMessage>()) {
-            for (auto& [name, each] : streams)
+            for (auto& [name, each] : streams) {
               each.pipeline->addTransforms(transforms->transforms, topic == kTfStaticTopic, now);
+              each.trim();
+            }
           }
         }
       } else {
@@ -156,11 +164,18 @@ BagDeskewSummary deskewBag(const BagDeskewOptions& options) {
         // The scan as read (read once), with its original connection header.
         output.write(options.replace ? topic + "_raw" : topic, message.getTime(), scan,
                      message.getConnectionHeader());
-        stream->second.waiting.emplace_back(scan.get(), message.getTime());
-        stream->second.pipeline->addScan(scan, now);
+        TopicStream& target = stream->second;
+        target.waiting.emplace_back(scan, message.getTime());
+        const std::uint64_t malformed = target.pipeline->counters().dropped_invalid;
+        target.pipeline->addScan(scan, now);
+        if (target.pipeline->counters().dropped_invalid > malformed)
+          target.waiting.pop_back();  // never queued
+        target.trim();
       }
-      for (auto& [name, each] : streams)
+      for (auto& [name, each] : streams) {
         each.pipeline->expire(now);  // waiting measured in record time, as live on the wall clock
+        each.trim();
+      }
 
       const auto wall = std::chrono::steady_clock::now();
       if (options.progress && wall - last_progress > std::chrono::milliseconds(200)) {
@@ -173,6 +188,7 @@ BagDeskewSummary deskewBag(const BagDeskewOptions& options) {
     }
     for (auto& [topic, stream] : streams) {
       stream.pipeline->flush();  // nothing more will come: what still waits has no tf
+      stream.trim();
       summary.counters[topic] = stream.pipeline->counters();
       const ros_adapter::PipelineCounters& counters = summary.counters[topic];
       if (counters.received > 0 && counters.published == 0) {

@@ -151,6 +151,9 @@ int main(int argc, char** argv) {
   try {
     options.params = ros_adapter::DeskewParams::load(ros_adapter::TextParams(parameters));
     const bag::BagDeskewSummary summary = bag::deskewBag(options);
+    // The output is complete: from here on Ctrl-C ends the program as usual.
+    std::signal(SIGINT, SIG_DFL);
+    std::signal(SIGTERM, SIG_DFL);
     const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
     std::printf("deskew_bag: %s -> %s in %.2f s, %zu messages copied\n", options.input.c_str(),
                 options.output.c_str(), elapsed, summary.messages);

@@ -167,6 +167,8 @@ void DeskewParams::validate() const {
     throw core::InvalidInput("base_frame", "must differ from fixed_frame");
   checkNumber("scan_period", timing.scan_period);
   checkNumber("max_sweep_duration", timing.max_sweep_duration);
+  if (!exact && deskew.knot_interval == 0.0)
+    throw core::InvalidInput("knot_interval", "must be > 0; set exact: true for per-beam lookups");
   if (!exact)
     checkNumber("knot_interval", deskew.knot_interval);
   else if (deskew.knot_interval != 0.0)

@@ -79,10 +79,11 @@ std::string toString(PipelineEvent event) {
 }
 
 ScanPipeline::ScanPipeline(const DeskewParams& params, Publish publish, Report report, double tf_cache_time)
-    : params_(params),
+    : params_((params.validate(), params)),
       publish_(std::move(publish)),
       report_(std::move(report)),
-      tf_(params.fixed_frame, params.base_frame, tf_cache_time,
+      tf_(params.fixed_frame, params.base_frame,
+          std::max(tf_cache_time, params.tf_timeout + params.timing.max_sweep_duration + 1.0),
           [this](TfEvent event, const std::string& text) { onTfEvent(event, text); }),
       processor_(params) {}
 

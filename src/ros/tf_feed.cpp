@@ -2,6 +2,7 @@
 
 #include <tf2/exceptions.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include "lidar_deskew/ros/conversions.h"
@@ -55,9 +56,12 @@ bool TfFeed::add(const geometry_msgs::TransformStamped& transform_in, bool is_st
       }
       return true;
     }
+    if (!buffer_->setTransform(transform, "tf_static", true)) {
+      notify(TfEvent::kBadTransform, "tf2 refused /tf_static " + parent + " -> " + child);
+      return true;
+    }
     statics_[child] = transform;
     parents_[child] = parent;
-    buffer_->setTransform(transform, "tf_static", true);
     return true;
   }
 
@@ -76,26 +80,28 @@ bool TfFeed::add(const geometry_msgs::TransformStamped& transform_in, bool is_st
   parents_[child] = parent;
   const std::set<std::string> chain = chainChildren();
   const bool on_chain = chain.count(child) > 0;
+  const core::TimeNs stamp = toNs(transform.header.stamp);
   if (on_chain) {
-    const core::TimeNs stamp = toNs(transform.header.stamp);
-    if (newest_chain_stamp_ != 0 && stamp + kTimeJumpNs < newest_chain_stamp_) {
-      notify(TfEvent::kTimeJump, "time went backwards (" + fixed_frame_ + " -> " + base_frame_ +
-                                     " motion): clearing the tf cache");
+    // Each link against its own newest stamp: links of one chain may lag or lead each other by more
+    // than a second (a localiser future-dating map -> odom), and that is no jump.
+    core::TimeNs& newest = newest_link_stamps_[child];
+    if (newest != 0 && stamp + kTimeJumpNs < newest) {
+      notify(TfEvent::kTimeJump, "time went backwards (" + parent + " -> " + child + ", " +
+                                     std::to_string(core::nsToSeconds(newest - stamp)) +
+                                     " s): clearing the tf cache");
       buffer_->clear();
       motion_.clearSampleTimes();
-      newest_chain_stamp_ = 0;
+      newest_link_stamps_.clear();
       in_time = false;
     }
-    newest_chain_stamp_ = std::max(newest_chain_stamp_, stamp);
+    newest_link_stamps_[child] = std::max(newest_link_stamps_[child], stamp);
   }
-  try {
-    buffer_->setTransform(transform, "tf", false);
-  } catch (const tf2::TransformException& error) {
-    notify(TfEvent::kBadTransform, std::string("ignoring a transform: ") + error.what());
+  if (!buffer_->setTransform(transform, "tf", false)) {
+    notify(TfEvent::kBadTransform, "tf2 refused /tf " + parent + " -> " + child);
     return in_time;
   }
   if (on_chain) {
-    motion_.addSampleTime(toNs(transform.header.stamp));
+    motion_.addSampleTime(stamp);
     // One dynamic link straight from fixed to base: its stamps are all of the chain's samples.
     motion_.setSingleLink(chain.size() == 1 && parent == fixed_frame_ && child == base_frame_);
   }
@@ -105,13 +111,15 @@ bool TfFeed::add(const geometry_msgs::TransformStamped& transform_in, bool is_st
 void TfFeed::rebuildWithout(const std::string& child) {
   statics_.erase(child);
   // tf2 cannot forget one frame's static parent: start a new buffer with the statics kept. The
-  // dynamic history is lost once, when a frame is first seen moving (normally at start-up).
-  buffer_ = std::make_unique<tf2::BufferCore>(cache_time_);
+  // dynamic history is lost then, once for each such frame, when it is first seen moving (normally at
+  // start-up).
+  auto rebuilt = std::make_unique<tf2::BufferCore>(cache_time_);
   for (const auto& [frame, transform] : statics_)
-    buffer_->setTransform(transform, "tf_static", true);
+    rebuilt->setTransform(transform, "tf_static", true);
+  buffer_ = std::move(rebuilt);
   motion_.setBuffer(*buffer_);
   motion_.clearSampleTimes();
-  newest_chain_stamp_ = 0;
+  newest_link_stamps_.clear();
 }
 
 std::set<std::string> TfFeed::chainChildren() const {

@@ -188,6 +188,17 @@ std::vector<double> scanDistances(const LiveRig& rig, const sensor_msgs::LaserSc
   return distances;
 }
 
+std::vector<double> rawDistances(const LiveRig& rig, const sim::SimulatedScan& input, double start) {
+  const sim::Pose2 laser = rig.trajectory.pose(start).compose(rig.mount);
+  std::vector<double> distances;
+  for (std::size_t i = 0; i < input.scan.ranges.size(); ++i) {
+    const double angle = input.scan.angle_min + i * static_cast<double>(input.scan.angle_increment);
+    distances.push_back(rig.world.distanceTo(
+        laser.apply(input.scan.ranges[i] * Eigen::Vector2d(std::cos(angle), std::sin(angle)))));
+  }
+  return distances;
+}
+
 double rms(const std::vector<double>& values) {
   return sim::errorStats(values).rms;
 }

@@ -94,6 +94,9 @@ class LiveRig {
 /// true walls, placed with the laser's true pose at the output stamp (the reference time).
 std::vector<double> cloudDistances(const LiveRig& rig, const sensor_msgs::PointCloud2& cloud);
 std::vector<double> scanDistances(const LiveRig& rig, const sensor_msgs::LaserScan& scan);
+/// Distances [m] of the raw scan's beam endpoints to the true walls, drawn from the laser's true pose
+/// at the scan's start `start` [s] as if the robot stood still (what the correction removes).
+std::vector<double> rawDistances(const LiveRig& rig, const sim::SimulatedScan& input, double start);
 double rms(const std::vector<double>& values);
 
 }  // namespace lidar_deskew::test

@@ -56,12 +56,8 @@ TEST(LiveDeskew, CorrectedCloudAndScanLieOnTheTrueWalls) {
     for (double d : scanDistances(rig, *scan))
       scan_errors.push_back(d);
     // The raw scan, drawn at its stamp, for comparison.
-    const sim::Pose2 laser = rig.trajectory.pose(start).compose(rig.mount);
-    for (std::size_t i = 0; i < input.scan.ranges.size(); ++i) {
-      const double angle = input.scan.angle_min + i * static_cast<double>(input.scan.angle_increment);
-      raw_errors.push_back(rig.world.distanceTo(
-          laser.apply(input.scan.ranges[i] * Eigen::Vector2d(std::cos(angle), std::sin(angle)))));
-    }
+    for (double d : rawDistances(rig, input, start))
+      raw_errors.push_back(d);
   }
   std::printf("distance to the true walls, RMS: raw %.2f mm, cloud %.3f mm, scan %.3f mm\n",
               1e3 * rms(raw_errors), 1e3 * rms(cloud_errors), 1e3 * rms(scan_errors));

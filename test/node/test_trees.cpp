@@ -35,12 +35,8 @@ TEST(Trees, EveryScanIsCorrectedOntoTheTrueWalls) {
     EXPECT_EQ(cloud->header.frame_id, TfTree::named(name).laser);  // the input's own frame id, as it was
     for (double d : cloudDistances(rig, *cloud))
       cloud_errors.push_back(d);
-    const sim::Pose2 laser = rig.trajectory.pose(start).compose(rig.mount);
-    for (std::size_t i = 0; i < input.scan.ranges.size(); ++i) {
-      const double angle = input.scan.angle_min + i * static_cast<double>(input.scan.angle_increment);
-      raw_errors.push_back(rig.world.distanceTo(
-          laser.apply(input.scan.ranges[i] * Eigen::Vector2d(std::cos(angle), std::sin(angle)))));
-    }
+    for (double d : rawDistances(rig, input, start))
+      raw_errors.push_back(d);
   }
   // tf's own interpolation between 50 Hz samples leaves under a millimetre on this arc; the raw scans
   // are decimetres off.

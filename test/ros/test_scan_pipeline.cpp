@@ -157,17 +157,41 @@ TEST(ScanPipeline, ScansWaitOnTheOwnersClockThenFail) {
     EXPECT_EQ(run.pipeline.counters().dropped_tf, drop ? 1u : 0u);
     EXPECT_EQ(run.pipeline.counters().passed_through, drop ? 0u : 1u);
     EXPECT_EQ(run.results.size(), drop ? 0u : 1u);
-    // Late tf that comes within tf_timeout is waited for: the next scan is corrected when it comes.
+    // Late tf that comes within tf_timeout is waited for: the next scan is corrected when it comes,
+    // 0.15 s after the scan.
     run.pipeline.addScan(run.drive.scanAt(0.2), 0.4);
     run.pipeline.expire(0.5);
-    run.tfUntil(0.25);
+    EXPECT_EQ(run.pipeline.waiting(), 1u);
+    run.pipeline.addTransforms({run.drive.motionAt(0.24)}, false, 0.55);
+    EXPECT_EQ(run.pipeline.waiting(), 0u);
     EXPECT_EQ(run.pipeline.counters().published, 1u);
+    ASSERT_FALSE(run.results.empty());
+    EXPECT_NEAR(run.results.back().waited, 0.15, 1e-9);
     // flush(): nothing more will come (the end of a bag).
     run.pipeline.addScan(run.drive.scanAt(0.3), 0.5);
     run.pipeline.flush();
     EXPECT_EQ(run.pipeline.waiting(), 0u);
     EXPECT_EQ(run.pipeline.counters().dropped_tf + run.pipeline.counters().passed_through, 2u);
   }
+}
+
+// Time going back (a bag loop): the tf cache and the waiting scans are cleared once, and the new time
+// line is corrected.
+TEST(ScanPipeline, TimeJumpClearsTheQueueOnceAndRecovers) {
+  PipelineRun run{Drive()};
+  run.statics(0.0);
+  run.tfUntil(2.0);
+  run.pipeline.addScan(run.drive.scanAt(3.0), 3.0);  // waits: tf ends at 2 s
+  EXPECT_EQ(run.pipeline.waiting(), 1u);
+  run.tf_until = -0.1;  // the bag starts again
+  run.tfUntil(0.05);
+  EXPECT_EQ(run.pipeline.waiting(), 0u);
+  EXPECT_EQ(run.pipeline.counters().time_jumps, 1u);
+  for (int k = 0; k < 4; ++k)
+    run.scan(0.1 + k * 0.025);
+  EXPECT_EQ(run.pipeline.counters().time_jumps, 1u);
+  EXPECT_EQ(run.pipeline.counters().published, 4u);
+  EXPECT_LT(rms(run.cloudDistances()), 1e-3);
 }
 
 // A scan frame with no mount anywhere is dropped as such once its wait is over, named in the report.

@@ -69,8 +69,11 @@ class ScanPipeline {
   using Publish = std::function<void(const PipelineResult&)>;
   using Report = std::function<void(PipelineEvent, const std::string&)>;
 
-  /// Throws core::InvalidInput for invalid parameters. `tf_cache_time` [s] of dynamic tf kept.
+  /// Throws core::InvalidInput for invalid parameters. `tf_cache_time` [s] of dynamic tf kept (at
+  /// least tf_timeout + max_sweep_duration + 1 s, so a waiting scan's tf is never forgotten).
   ScanPipeline(const DeskewParams& params, Publish publish, Report report, double tf_cache_time = 10.0);
+  ScanPipeline(const ScanPipeline&) = delete;  // its tf feed reports to `this`
+  ScanPipeline& operator=(const ScanPipeline&) = delete;
 
   /// Transforms from /tf or /tf_static at `now` [s]; serves the scans they complete.
   void addTransforms(const std::vector<geometry_msgs::TransformStamped>& transforms, bool is_static,

@@ -22,7 +22,7 @@ namespace lidar_deskew::ros_adapter {
 enum class TfEvent {
   kStaticIgnored,  ///< a /tf_static parent of a frame that moves on /tf was left out (once per frame)
   kTimeJump,       ///< the chain's stamps went back by more than 1 s: the tf cache was cleared
-  kBadTransform,   ///< a transform tf2 would refuse (empty or equal frames, non-finite values)
+  kBadTransform,   ///< a transform refused (by tf2, or for empty or equal frames, non-finite values)
   kMountFirst,     ///< the first mount of a scan frame
   kMountChanged,   ///< the mount of a scan frame changed
 };
@@ -33,8 +33,10 @@ enum class TfEvent {
 ///   out, whichever came first (tf2 would otherwise answer one pose for all times). Statics of frames
 ///   that do not move on /tf (REP-105's base_footprint -> base_link under a moving base_footprint, a
 ///   mount through a plate) are kept.
-/// - Dynamic transforms of the fixed -> base chain whose stamp is more than 1 s older than the chain's
-///   newest one mean time went backwards (a bag loop, a /clock reset): the dynamic cache is cleared.
+/// - A dynamic link of the fixed -> base chain stamped more than 1 s before that link's own newest
+///   stamp means time went backwards (a bag loop, a /clock reset): the dynamic cache is cleared.
+/// - Transforms tf2 refuses (or that have empty or equal frame ids, non-finite values) are reported
+///   and leave no trace.
 /// - The mount base_frame -> scan frame is the newest tf has (any chain, identity when the scan frame
 ///   is the base frame); kept when a time jump clears it.
 /// Not thread-safe.
@@ -44,6 +46,8 @@ class TfFeed {
 
   /// `cache_time` [s]: how much dynamic tf history is kept.
   TfFeed(const std::string& fixed_frame, const std::string& base_frame, double cache_time, Notify notify);
+  TfFeed(const TfFeed&) = delete;
+  TfFeed& operator=(const TfFeed&) = delete;
 
   /// Adds one transform from /tf (is_static false) or /tf_static. Returns false when time went
   /// backwards and the dynamic cache was cleared before this transform was added.
@@ -80,9 +84,9 @@ class TfFeed {
   std::map<std::string, geometry_msgs::TransformStamped> statics_;  // child -> the static kept for it
   std::map<std::string, std::string> parents_;                      // child -> parent, as last seen
   std::set<std::string> moving_;                                    // children of dynamic transforms
-  std::set<std::string> ignored_statics_;               // children whose static parent was reported left out
-  core::TimeNs newest_chain_stamp_ = 0;                 // [ns] of a dynamic transform on the chain
-  std::map<std::string, mrpt::poses::CPose3D> mounts_;  // the last mount of each scan frame
+  std::set<std::string> ignored_statics_;  // children whose static parent was reported left out
+  std::map<std::string, core::TimeNs> newest_link_stamps_;  // [ns] by child frame, links of the chain
+  std::map<std::string, mrpt::poses::CPose3D> mounts_;      // the last mount of each scan frame
 };
 
 }  // namespace lidar_deskew::ros_adapter
