@@ -50,6 +50,12 @@ LogPolicy policyOf(PipelineEvent event) {
   return {Level::Warn, 1.0};
 }
 
+/// [s] The clock scans wait on: ROS time when it is simulated (a paused or stepped `rosbag play
+/// --clock` stops the wait too), else the wall clock.
+double waitClock(const ros::WallTime& wall) {
+  return ros::Time::isSimTime() ? ros::Time::now().toSec() : wall.toSec();
+}
+
 }  // namespace
 
 LaserScanDeskewNode::LaserScanDeskewNode(ros::NodeHandle nh, ros::NodeHandle private_nh, std::string name)
@@ -61,6 +67,10 @@ LaserScanDeskewNode::LaserScanDeskewNode(ros::NodeHandle nh, ros::NodeHandle pri
           params_, [this](const ros_adapter::PipelineResult& result) { publish(result); },
           [this](PipelineEvent event, const std::string& text) { report(event, text); }) {
   last_diagnostics_ = last_tick_ = running_since_ = trigger_ = ros::WallTime::now();
+  std::vector<std::string> given = ros_adapter::NodeHandleParams(private_nh_).names();
+  given.erase(std::remove(given.begin(), given.end(), "diagnostic_period"), given.end());  // the Updater's
+  for (const std::string& unknown : ros_adapter::DeskewParams::unknownNames(given))
+    ROS_WARN("%s: ignoring unknown parameter ~%s", name_.c_str(), unknown.c_str());
   private_nh_.setParam("diagnostic_period", params_.diagnostics_period);  // read by the Updater
   diagnostics_ = std::make_unique<diagnostic_updater::Updater>(nh_, private_nh_, name_);
   diagnostics_->setHardwareID("none");
@@ -151,7 +161,7 @@ void LaserScanDeskewNode::scanCallback(const sensor_msgs::LaserScan::ConstPtr& m
   std::lock_guard<std::mutex> lock(mutex_);
   trigger_ = arrival;
   try {
-    pipeline_.addScan(message, arrival.toSec());
+    pipeline_.addScan(message, waitClock(arrival));
   } catch (const std::exception& error) {  // never let an exception reach the manager
     ROS_ERROR_THROTTLE(1.0, "%s: error processing scans: %s", name_.c_str(), error.what());
   }
@@ -162,13 +172,14 @@ void LaserScanDeskewNode::tfCallback(const tf2_msgs::TFMessage::ConstPtr& messag
   std::lock_guard<std::mutex> lock(mutex_);
   trigger_ = arrival;
   try {
-    pipeline_.addTransforms(message->transforms, is_static, arrival.toSec());
+    pipeline_.addTransforms(message->transforms, is_static, waitClock(arrival));
   } catch (const std::exception& error) {  // never let an exception reach the manager
     ROS_ERROR_THROTTLE(1.0, "%s: error handling tf: %s", name_.c_str(), error.what());
   }
 }
 
 void LaserScanDeskewNode::timerCallback(const ros::WallTimerEvent& /*event*/) {
+  bool diagnostics_due = false;
   {
     std::lock_guard<std::mutex> lock(mutex_);
     const ros::WallTime now = ros::WallTime::now();
@@ -182,14 +193,18 @@ void LaserScanDeskewNode::timerCallback(const ros::WallTimerEvent& /*event*/) {
     const bool settled = (now - running_since_).toSec() >= 2 * kTimerPeriod;
     try {
       if (settled)
-        pipeline_.expire(now.toSec());
+        pipeline_.expire(waitClock(now));
       else
-        pipeline_.serveReady(now.toSec());
+        pipeline_.serveReady(waitClock(now));
     } catch (const std::exception& error) {  // never let an exception reach the manager
       ROS_ERROR_THROTTLE(1.0, "%s: error processing scans: %s", name_.c_str(), error.what());
     }
+    diagnostics_due = (now - last_diagnostics_).toSec() >= params_.diagnostics_period;
   }
-  diagnostics_->update();
+  // On the wall clock: the Updater's own schedule is in ROS time, which stands still with a paused
+  // bag and goes back when a bag loops (diagnostics then fell silent).
+  if (diagnostics_due)
+    diagnostics_->force_update();
 }
 
 void LaserScanDeskewNode::report(PipelineEvent event, const std::string& text) {

@@ -1,5 +1,6 @@
 #include "lidar_deskew/ros/deskew_params.h"
 
+#include <algorithm>
 #include <climits>
 #include <cmath>
 #include <cstdint>
@@ -79,6 +80,23 @@ void checkChoice(const std::string& name, const std::string& value) {
     throw core::InvalidInput(name, "must be one of " + choices + ", got '" + value + "'");
 }
 
+/// Edit distance (insertions, deletions, substitutions) between two names.
+std::size_t editDistance(const std::string& a, const std::string& b) {
+  std::vector<std::size_t> row(b.size() + 1);
+  for (std::size_t j = 0; j <= b.size(); ++j)
+    row[j] = j;
+  for (std::size_t i = 1; i <= a.size(); ++i) {
+    std::size_t diagonal = row[0];
+    row[0] = i;
+    for (std::size_t j = 1; j <= b.size(); ++j) {
+      const std::size_t above = row[j];
+      row[j] = std::min({row[j] + 1, row[j - 1] + 1, diagonal + (a[i - 1] == b[j - 1] ? 0 : 1)});
+      diagonal = above;
+    }
+  }
+  return row[b.size()];
+}
+
 }  // namespace
 
 std::string ParamSpec::bounds() const {
@@ -156,6 +174,26 @@ DeskewParams DeskewParams::load(const ParamSource& source) {
   source.get("diagnostics_period", params.diagnostics_period);
   params.validate();
   return params;
+}
+
+std::vector<std::string> DeskewParams::unknownNames(const std::vector<std::string>& given) {
+  std::vector<std::string> unknown;
+  for (const std::string& name : given) {
+    const auto& known = names();
+    if (std::find(known.begin(), known.end(), name) != known.end())
+      continue;
+    std::string closest;
+    std::size_t best = 3;  // at most two edits make a misspelling
+    for (const std::string& candidate : known) {
+      const std::size_t distance = editDistance(name, candidate);
+      if (distance < best) {
+        best = distance;
+        closest = candidate;
+      }
+    }
+    unknown.push_back(closest.empty() ? name : name + " (did you mean " + closest + "?)");
+  }
+  return unknown;
 }
 
 void DeskewParams::validate() const {

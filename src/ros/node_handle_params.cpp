@@ -34,7 +34,25 @@ bool NodeHandleParams::get(const std::string& name, double& value) const {
 }
 
 bool NodeHandleParams::get(const std::string& name, int& value) const {
-  return getFromNodeHandle(nh_, name, value, "an integer");
+  // roscpp would round a YAML 2.5 to 2: refuse anything but an integer.
+  XmlRpc::XmlRpcValue raw;
+  if (!nh_.getParam(name, raw))
+    return false;
+  if (raw.getType() != XmlRpc::XmlRpcValue::TypeInt)
+    throw core::InvalidInput(name, "must be an integer, got " + raw.toXml());
+  value = static_cast<int>(raw);
+  return true;
+}
+
+std::vector<std::string> NodeHandleParams::names() const {
+  std::vector<std::string> all, mine;
+  nh_.getParamNames(all);
+  const std::string prefix = nh_.getNamespace() + "/";
+  for (const std::string& name : all) {
+    if (name.rfind(prefix, 0) == 0 && name.find('/', prefix.size()) == std::string::npos)
+      mine.push_back(name.substr(prefix.size()));
+  }
+  return mine;
 }
 
 bool NodeHandleParams::get(const std::string& name, bool& value) const {

@@ -34,6 +34,9 @@ class ExtrapolatingMotion final : public core::MotionSource {
   core::TimeNs newest_, previous_, limit_;
 };
 
+/// A larger jump of header.seq is taken for a driver that restarted, not for lost scans.
+constexpr std::uint32_t kMaxSeqGap = 100000;
+
 }  // namespace
 
 std::vector<std::pair<std::string, std::uint64_t>> namedCounters(const PipelineCounters& c) {
@@ -49,7 +52,8 @@ std::vector<std::pair<std::string, std::uint64_t>> namedCounters(const PipelineC
           {"tf gaps", c.tf_gaps},
           {"mount changes", c.mount_changes},
           {"time jumps", c.time_jumps},
-          {"statics ignored", c.statics_ignored}};
+          {"statics ignored", c.statics_ignored},
+          {"lost upstream", c.lost_upstream}};
 }
 
 std::string toString(PipelineEvent event) {
@@ -120,6 +124,12 @@ void ScanPipeline::addTransforms(const std::vector<geometry_msgs::TransformStamp
 
 void ScanPipeline::addScan(const sensor_msgs::LaserScan::ConstPtr& message, double now) {
   ++counters_.received;
+  // A gap in header.seq is scans lost upstream; a smaller seq is a restarted driver or a looped bag,
+  // and 0 is taken for "unset".
+  const std::uint32_t seq = message->header.seq;
+  if (last_seq_ && *last_seq_ != 0 && seq > *last_seq_ + 1 && seq - *last_seq_ <= kMaxSeqGap)
+    counters_.lost_upstream += seq - *last_seq_ - 1;
+  last_seq_ = seq;
   Pending pending;
   pending.arrival = now;
   try {

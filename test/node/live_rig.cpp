@@ -42,6 +42,7 @@ void LiveRig::subscribeOutputs() {
         for (const auto& status : array->status) {
           if (status.name.find(diagnostics_name_) == std::string::npos)
             continue;
+          ++diagnostics_received_;
           for (const auto& value : status.values)
             diagnostics_[value.key] = value.value;
         }

@@ -66,6 +66,8 @@ class LiveRig {
   /// The newest value of a diagnostics key of the deskew status (empty when none arrived yet).
   std::string diagnostic(const std::string& key) const;
   double diagnosticNumber(const std::string& key) const;
+  /// How many statuses of the deskew arrived on /diagnostics so far.
+  std::size_t diagnosticsReceived() const { return diagnostics_received_; }
 
   ros::Time stampOf(double t) const;
   double secondsOf(const ros::Time& stamp) const;
@@ -88,6 +90,7 @@ class LiveRig {
   std::deque<sensor_msgs::LaserScan::ConstPtr> scans_;
   std::deque<sensor_msgs::PointCloud2::ConstPtr> clouds_;
   std::map<std::string, std::string> diagnostics_;
+  std::size_t diagnostics_received_ = 0;
 };
 
 /// Distances [m] of the corrected cloud's points, and of the corrected scan's beam endpoints, to the

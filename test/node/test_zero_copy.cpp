@@ -58,6 +58,7 @@ TEST(Parameters, BadValueIsNamedAndNothingStartsHalfConfigured) {
   EXPECT_EQ(fieldOf("knot_interval", std::string("fast")), "knot_interval");
   EXPECT_EQ(fieldOf("base_frame", std::string("odom")), "base_frame");
   EXPECT_EQ(fieldOf("queue_size", 0), "queue_size");
+  EXPECT_EQ(fieldOf("queue_size", 2.5), "queue_size");  // not rounded to 2
   EXPECT_EQ(fieldOf("rebin_gap_factor", -2.0), "rebin_gap_factor");
   const auto advertised = [] {
     ros::master::V_TopicInfo topics;

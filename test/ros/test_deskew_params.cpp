@@ -127,6 +127,13 @@ TEST(Params, EveryBoundIsEnforced) {
             "odom");
 }
 
+// A misspelled parameter is named, with the one meant.
+TEST(Params, UnknownNamesAreNamedWithTheClosestParameter) {
+  EXPECT_EQ(DeskewParams::unknownNames({"tf_timout", "tf_timeout", "colour", "stampat"}),
+            (std::vector<std::string>{"tf_timout (did you mean tf_timeout?)", "colour",
+                                      "stampat (did you mean stamp_at?)"}));
+}
+
 // The live-only parameters are the ones deskew_bag refuses.
 TEST(Params, LiveOnlyParameters) {
   const auto& live = DeskewParams::liveOnlyNames();

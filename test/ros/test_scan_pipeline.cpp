@@ -194,6 +194,29 @@ TEST(ScanPipeline, TimeJumpClearsTheQueueOnceAndRecovers) {
   EXPECT_LT(rms(run.cloudDistances()), 1e-3);
 }
 
+// Scans lost upstream show as gaps in header.seq; an unset seq (always 0) or a restart counts nothing.
+TEST(ScanPipeline, GapsInSeqAreCountedAsLostUpstream) {
+  PipelineRun run{Drive()};
+  run.statics(0.0);
+  run.tfUntil(0.05);
+  const auto scanWithSeq = [&](std::uint32_t seq, double t) {
+    const auto scan = run.drive.scanAt(t);
+    scan->header.seq = seq;
+    run.pipeline.addScan(scan, t + 0.025);
+    run.tfUntil(t + 0.05);
+  };
+  for (const std::uint32_t seq : {0u, 0u, 0u})
+    scanWithSeq(seq, 0.1);
+  EXPECT_EQ(run.pipeline.counters().lost_upstream, 0u);
+  scanWithSeq(7, 0.15);
+  scanWithSeq(8, 0.2);
+  scanWithSeq(11, 0.25);  // 9 and 10 lost
+  scanWithSeq(3, 0.3);    // the driver restarted
+  scanWithSeq(4, 0.35);
+  EXPECT_EQ(run.pipeline.counters().lost_upstream, 2u);
+  EXPECT_EQ(run.pipeline.counters().received, 8u);
+}
+
 // A scan frame with no mount anywhere is dropped as such once its wait is over, named in the report.
 TEST(ScanPipeline, MissingMountIsDroppedAndNamed) {
   PipelineRun run{Drive()};

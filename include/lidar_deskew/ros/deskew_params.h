@@ -59,6 +59,9 @@ struct DeskewParams {
   static const std::vector<std::string>& liveOnlyNames();
   /// Throws core::InvalidInput naming the first parameter outside its bounds (specs()).
   void validate() const;
+  /// Of `given` names, those that are no parameter, each with the closest parameter name when one is
+  /// near (a misspelling): "tf_timout (did you mean tf_timeout?)".
+  static std::vector<std::string> unknownNames(const std::vector<std::string>& given);
 };
 
 std::string toString(OnTfFailure value);

@@ -4,6 +4,7 @@
 #include <ros/node_handle.h>
 
 #include <string>
+#include <vector>
 
 #include "lidar_deskew/ros/param_source.h"
 
@@ -17,6 +18,8 @@ class NodeHandleParams final : public ParamSource {
   bool get(const std::string& name, double& value) const override;
   bool get(const std::string& name, int& value) const override;
   bool get(const std::string& name, bool& value) const override;
+  /// The names of the parameters directly in the namespace.
+  std::vector<std::string> names() const;
 
  private:
   const ros::NodeHandle& nh_;

@@ -10,6 +10,7 @@
 #include <cstdint>
 #include <deque>
 #include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -34,6 +35,9 @@ struct PipelineCounters {
   std::uint64_t mount_changes = 0;    ///< the mount base_frame -> scan frame changed
   std::uint64_t time_jumps = 0;       ///< time went backwards: tf cache and queue cleared
   std::uint64_t statics_ignored = 0;  ///< /tf_static parents of moving frames left out
+  /// Scans lost before the pipeline saw them (a driver's, the network's or roscpp's input queue), from
+  /// gaps in header.seq; 0 when the driver leaves seq unset.
+  std::uint64_t lost_upstream = 0;
 };
 
 /// The counters by the names the node's diagnostics and deskew_bag's summary both show them.
@@ -114,6 +118,7 @@ class ScanPipeline {
   ScanProcessor processor_;
   std::deque<Pending> pending_;
   PipelineCounters counters_;
+  std::optional<std::uint32_t> last_seq_;  // header.seq of the last scan received
 };
 
 std::string toString(PipelineEvent event);
