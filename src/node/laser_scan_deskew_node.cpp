@@ -90,18 +90,25 @@ LaserScanDeskewNode::LaserScanDeskewNode(ros::NodeHandle nh, ros::NodeHandle pri
     const ros::SubscriberStatusCallback connect = [this](const ros::SingleSubscriberPublisher&) {
       connectCallback();
     };
-    scan_publisher_ = nh_.advertise<sensor_msgs::LaserScan>("scan_deskewed", 10, connect, connect);
+    // Named after the input as remapped (the bag tool's names): two instances never collide.
+    const std::string input = nh_.resolveName("scan");
+    scan_publisher_ = nh_.advertise<sensor_msgs::LaserScan>(input + "_deskewed", 10, connect, connect);
     cloud_publisher_ =
-        nh_.advertise<ros_adapter::DeskewedCloud>("scan_deskewed_points", 10, connect, connect);
+        nh_.advertise<ros_adapter::DeskewedCloud>(input + "_deskewed_points", 10, connect, connect);
   }
   timer_ = nh_.createWallTimer(ros::WallDuration(kTimerPeriod), &LaserScanDeskewNode::timerCallback, this);
   const std::string mode = params_.exact
                                ? "exact per-beam lookups"
                                : "knots every " + std::to_string(params_.deskew.knot_interval) + " s";
-  ROS_INFO("%s: fixed_frame %s, base_frame %s, reference %s, %s, tf_timeout %.3f s, on_tf_failure %s",
-           name_.c_str(), params_.fixed_frame.c_str(), params_.base_frame.c_str(),
-           core::toString(params_.deskew.reference).c_str(), mode.c_str(), params_.tf_timeout,
-           ros_adapter::toString(params_.on_tf_failure).c_str());
+  const core::TimingConfig& timing = params_.timing;
+  ROS_INFO(
+      "%s: %s -> %s and %s_points; fixed_frame %s, base_frame %s; stamp_at %s, scan_period %.4f s "
+      "(when time_increment and scan_time are 0); reference %s, %s; tf_timeout %.3f s, on_tf_failure %s",
+      name_.c_str(), nh_.resolveName("scan").c_str(), scan_publisher_.getTopic().c_str(),
+      scan_publisher_.getTopic().c_str(), params_.fixed_frame.c_str(), params_.base_frame.c_str(),
+      core::toString(timing.stamp_at).c_str(), timing.scan_period,
+      core::toString(params_.deskew.reference).c_str(), mode.c_str(), params_.tf_timeout,
+      ros_adapter::toString(params_.on_tf_failure).c_str());
 }
 
 LaserScanDeskewNode::~LaserScanDeskewNode() {

@@ -40,7 +40,7 @@ const ParamSpec kSpecs[] = {
     {"max_tf_gap", "double", "0.5", "s", 0.0, 60.0, false, "", false,
      "refuse sweeps tf interpolates across a longer gap; 0 = never"},
     {"max_extrapolation", "double", "0.0", "s", 0.0, 1.0, false, "", true,
-     "extrapolate tf with the newest velocity at most this long; 0 = never"},
+     "after tf_timeout without tf, extrapolate at most this far instead of failing; 0 = never"},
     {"queue_size", "int", "10", "scans", 1.0, 100000.0, false, "", false, "scans waiting for tf at most"},
     {"rebin_min_gap", "double", "0.05", "m", 0.0, 100.0, false, "", false,
      "contour join distance, constant part"},

@@ -161,31 +161,31 @@ void ScanPipeline::addScan(const sensor_msgs::LaserScan::ConstPtr& message, doub
   serveReady(now);
 }
 
-bool ScanPipeline::ready(const Pending& pending, bool& extrapolate) const {
-  extrapolate = false;
+bool ScanPipeline::ready(const Pending& pending) const {
   // The mount may arrive after the motion (another connection): wait for both.
-  if (!tf_.mountKnown(pending.frame))
+  return tf_.mountKnown(pending.frame) &&
+         tf_.covers(pending.prepared.timing.earliestBeamTime(), pending.prepared.timing.latestBeamTime());
+}
+
+bool ScanPipeline::extrapolatable(const Pending& pending) const {
+  if (params_.max_extrapolation <= 0.0 || !tf_.mountKnown(pending.frame))
     return false;
   const core::TimeNs first = pending.prepared.timing.earliestBeamTime();
   const core::TimeNs last = pending.prepared.timing.latestBeamTime();
-  if (tf_.covers(first, last))
-    return true;
-  if (params_.max_extrapolation <= 0.0 || !tf_.covers(first, first))
+  if (!tf_.covers(first, first))
     return false;
   // tf of the chain ends inside the sweep, less than max_extrapolation before its last beam.
   const core::TimeNs newest = tf_.newestChainTime();
-  extrapolate = newest >= first && newest + core::secondsToNs(params_.max_extrapolation) >= last;
-  return extrapolate;
+  return newest >= first && newest + core::secondsToNs(params_.max_extrapolation) >= last;
 }
 
 void ScanPipeline::serveReady(double now) {
   while (!pending_.empty()) {
-    bool extrapolate = false;
-    if (!ready(pending_.front(), extrapolate))
+    if (!ready(pending_.front()))
       return;  // tf only grows: later scans wait too
     const Pending next = std::move(pending_.front());
     pending_.pop_front();
-    correct(next, extrapolate, now);
+    correct(next, false, now);
   }
 }
 
@@ -194,7 +194,10 @@ void ScanPipeline::expire(double now) {
   while (!pending_.empty() && now - pending_.front().arrival > params_.tf_timeout) {
     const Pending expired = std::move(pending_.front());
     pending_.pop_front();
-    if (!tf_.mountKnown(expired.frame)) {
+    if (extrapolatable(expired)) {
+      // The wait is over (tf_timeout, the latency budget): extrapolate rather than fail.
+      correct(expired, true, now);
+    } else if (!tf_.mountKnown(expired.frame)) {
       ++counters_.dropped_mount;
       report_(PipelineEvent::kMountMissing, "dropping scan: no transform " + tf_.baseFrame() + " -> " +
                                                 expired.frame + " (the laser mount) within tf_timeout");

@@ -15,8 +15,16 @@ class StandingStill final : public core::MotionSource {
   mrpt::poses::CPose3D basePose(core::TimeNs /*time*/) const override { return {}; }
 };
 
-boost::shared_ptr<DeskewedCloud> toCloud(const core::DeskewedScan& corrected,
-                                         const std_msgs::Header& header) {
+/// The outputs' stamp: the reference time on whole microseconds, since a PCL cloud's stamp holds no
+/// more (pcl_conversions truncates it), so that both outputs of one scan carry the same stamp.
+core::TimeNs outputStamp(core::TimeNs reference_time) {
+  return reference_time / 1000 * 1000;
+}
+
+/// `t_offset` [s] = reference time - the header's stamp, added to every point's t so that t stays
+/// relative to the stamp (under a microsecond).
+boost::shared_ptr<DeskewedCloud> toCloud(const core::DeskewedScan& corrected, const std_msgs::Header& header,
+                                         double t_offset) {
   auto cloud = boost::make_shared<DeskewedCloud>();
   pcl_conversions::toPCL(header, cloud->header);
   // At least one slot: pcl_ros serializes with memcpy from points.data(), which must not be null even
@@ -28,7 +36,7 @@ boost::shared_ptr<DeskewedCloud> toCloud(const core::DeskewedScan& corrected,
     out.y = static_cast<float>(point.position.y());
     out.z = static_cast<float>(point.position.z());
     out.intensity = point.intensity;
-    out.t = static_cast<float>(point.time_offset);
+    out.t = static_cast<float>(point.time_offset + t_offset);
     out.index = point.beam_index;
     cloud->points.push_back(out);
   }
@@ -77,7 +85,8 @@ DeskewedOutputs ScanProcessor::correct(const PreparedScan& prepared, const mrpt:
 
   const sensor_msgs::LaserScan& input = *prepared.message;
   std_msgs::Header header = input.header;
-  header.stamp = toRosTime(corrected_.reference_time);
+  const core::TimeNs stamp = outputStamp(corrected_.reference_time);
+  header.stamp = toRosTime(stamp);
   DeskewedOutputs outputs;
   const auto corrected_scan = boost::make_shared<sensor_msgs::LaserScan>();
   sensor_msgs::LaserScan& scan = *corrected_scan;
@@ -92,7 +101,7 @@ DeskewedOutputs ScanProcessor::correct(const PreparedScan& prepared, const mrpt:
   scan.ranges = rebinned_.ranges;
   scan.intensities = rebinned_.intensities;
   outputs.scan = corrected_scan;
-  outputs.cloud = toCloud(corrected_, header);
+  outputs.cloud = toCloud(corrected_, header, core::nsToSeconds(corrected_.reference_time - stamp));
   return outputs;
 }
 
@@ -101,8 +110,9 @@ DeskewedOutputs ScanProcessor::passThrough(const PreparedScan& prepared) {
   DeskewedOutputs outputs;
   outputs.scan = prepared.message;  // republished as is
   std_msgs::Header header = prepared.message->header;
-  header.stamp = toRosTime(corrected_.reference_time);  // the cloud's t is relative to it
-  outputs.cloud = toCloud(corrected_, header);
+  const core::TimeNs stamp = outputStamp(corrected_.reference_time);
+  header.stamp = toRosTime(stamp);  // the cloud's t is relative to it
+  outputs.cloud = toCloud(corrected_, header, core::nsToSeconds(corrected_.reference_time - stamp));
   return outputs;
 }
 

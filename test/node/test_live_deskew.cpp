@@ -114,24 +114,36 @@ TEST(LiveDeskew, MalformedScanIsDroppedAndTheNextServed) {
   EXPECT_TRUE(rig.waitFor([&] { return rig.diagnosticNumber("dropped: invalid") >= 2; }, 5.0));
 }
 
-// tf ends 10 ms before the sweep's last beam. With max_extrapolation (0.05 s here) the scan is corrected
-// at once with the newest velocity; without, it waits until tf covers it.
-TEST(LiveDeskew, ExtrapolatesOnlyWhenAllowed) {
+// tf ends 5 ms before the sweep's last beam. Without max_extrapolation the scan waits until tf covers
+// it. With it (0.05 s here), extrapolation backs the wait up, it does not replace it: tf that comes
+// within tf_timeout (0.2 s) is waited for and the scan corrected exactly; only when tf_timeout passes
+// without it is the scan extrapolated with the newest velocity instead of dropped.
+TEST(LiveDeskew, ExtrapolatesOnlyWhenAllowedAndOnlyOnceTheWaitIsOver) {
   LiveRig rig;
   ASSERT_TRUE(rig.connect());
-  const double start = 3.0;  // sweep [3.0, 3.025): tf up to 3.0 + 0.02 - ends 5 ms short
+  double start = 3.0;  // sweep [3.0, 3.025): tf up to 3.0 + 0.02 - ends 5 ms short
   rig.publishTfUntil(start + 0.02);
   rig.publishScan(start);
   sensor_msgs::LaserScan::ConstPtr scan;
   sensor_msgs::PointCloud2::ConstPtr cloud;
-  const bool early = rig.waitForOutputs(rig.stampOf(start), 0.1, scan, cloud);  // tf_timeout is 0.2 s
+  EXPECT_FALSE(rig.waitForOutputs(rig.stampOf(start), 0.1, scan, cloud));  // tf_timeout is 0.2 s
   if (flag("expect_extrapolation")) {
-    ASSERT_TRUE(early);
+    // tf never comes: extrapolated once the wait is over.
+    ASSERT_TRUE(rig.waitForOutputs(rig.stampOf(start), 1.5, scan, cloud));
     // 5 ms of constant-velocity extrapolation on a 6 m/s, 5 rad/s arc: millimetres at most.
     EXPECT_LT(rms(cloudDistances(rig, *cloud)), 3e-3);
     EXPECT_TRUE(rig.waitFor([&] { return rig.diagnosticNumber("extrapolated") >= 1; }, 5.0));
+    // tf 80 ms late, well within tf_timeout: waited for, corrected exactly, not extrapolated.
+    start = 3.5;
+    rig.publishTfUntil(start + 0.02);
+    rig.publishScan(start);
+    rig.spinFor(0.08);
+    rig.publishTfUntil(start + 0.06);
+    ASSERT_TRUE(rig.waitForOutputs(rig.stampOf(start), 1.5, scan, cloud));
+    EXPECT_LT(rms(cloudDistances(rig, *cloud)), 1e-3);
+    rig.spinFor(1.2);  // a diagnostics period
+    EXPECT_EQ(rig.diagnosticNumber("extrapolated"), 1.0);
   } else {
-    EXPECT_FALSE(early);
     rig.publishTfUntil(start + 0.06);
     EXPECT_TRUE(rig.waitForOutputs(rig.stampOf(start), 5.0, scan, cloud));
   }

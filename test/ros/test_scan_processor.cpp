@@ -73,7 +73,8 @@ TEST(ScanProcessor, BuildsTheCorrectedScanAndCloud) {
   const DeskewedOutputs outputs = processor.correct(prepared, mrpt::poses::CPose3D(), motion);
   const sensor_msgs::LaserScan& scan = *outputs.scan;
   EXPECT_EQ(scan.header.frame_id, "laser");
-  EXPECT_EQ(scan.header.stamp, input->header.stamp);  // reference start = first beam = stamp
+  // reference start = first beam = stamp (1000 s + 500 ns), on whole microseconds as PCL's stamp
+  EXPECT_EQ(scan.header.stamp, ros::Time(1000, 0));
   EXPECT_EQ(scan.angle_min, input->angle_min);
   EXPECT_EQ(scan.angle_increment, input->angle_increment);
   EXPECT_EQ(scan.time_increment, 0.0f);
@@ -88,8 +89,24 @@ TEST(ScanProcessor, BuildsTheCorrectedScanAndCloud) {
   EXPECT_EQ(last.index, 199u);
   const double angle = -1.0 + 199 * static_cast<double>(0.01f);
   EXPECT_NEAR(last.x, 2.0 * std::cos(angle) + 199 * 1e-4, 1e-5);
-  EXPECT_NEAR(last.t, 199 * 1e-4, 1e-7);
+  EXPECT_NEAR(last.t, 199 * 1e-4 + 500e-9, 1e-8);  // relative to the stamp, 500 ns before beam 0
   EXPECT_EQ(last.intensity, 50.0f);
+}
+
+// A stamp with nanoseconds (1000 s + 958 ns): a PCL cloud holds whole microseconds, so both outputs carry
+// the reference time on whole microseconds, equal to the nanosecond (an exact-time synchroniser pairs
+// them), and t stays relative to that stamp.
+TEST(ScanProcessor, BothOutputsCarryOneStampToTheNanosecond) {
+  ScanProcessor processor(DeskewParams{});
+  const auto input = makeScan();
+  input->header.stamp = ros::Time(1000, 958);
+  const core::PoseSamples motion = driving();
+  const DeskewedOutputs outputs = processor.correct(processor.prepare(input), mrpt::poses::CPose3D(), motion);
+  const ros::Time cloud_stamp = pcl_conversions::fromPCL(outputs.cloud->header).stamp;
+  EXPECT_EQ(outputs.scan->header.stamp, cloud_stamp);
+  EXPECT_EQ(cloud_stamp, ros::Time(1000, 0));
+  EXPECT_NEAR(outputs.cloud->points.front().t, 958e-9, 1e-10);  // beam 0 is 958 ns after the stamp
+  EXPECT_NEAR(outputs.cloud->points.back().t, 199 * 1e-4 + 958e-9, 5e-9);
 }
 
 TEST(ScanProcessor, PassThroughRepublishesTheInputAndStampsTheCloudAtItsReference) {
@@ -101,7 +118,8 @@ TEST(ScanProcessor, PassThroughRepublishesTheInputAndStampsTheCloudAtItsReferenc
   EXPECT_EQ(outputs.scan.get(), input.get());  // the very message, not a copy
   const ros::Time end = input->header.stamp + ros::Duration(199 * static_cast<double>(input->time_increment));
   EXPECT_NEAR((pcl_conversions::fromPCL(outputs.cloud->header).stamp - end).toSec(), 0.0, 1e-6);
-  EXPECT_NEAR(outputs.cloud->points.front().t, -199 * 1e-4, 1e-7);  // beam 0 is 19.9 ms before the end
+  // beam 0 is 19.9 ms before the end, the stamp 500 ns before the end
+  EXPECT_NEAR(outputs.cloud->points.front().t, -199 * 1e-4 + 500e-9, 1e-8);
   EXPECT_NEAR(outputs.cloud->points.front().x, 2.0 * std::cos(-1.0), 1e-6);  // uncorrected
 }
 

@@ -86,7 +86,8 @@ class ScanPipeline {
   void addScan(const sensor_msgs::LaserScan::ConstPtr& message, double now);
   /// Serves the scans tf covers, in arrival order (a waiting scan holds back those behind it).
   void serveReady(double now);
-  /// Fails (drop or pass through) the scans that have waited longer than tf_timeout at `now` [s].
+  /// The scans that have waited longer than tf_timeout at `now` [s]: extrapolated when
+  /// max_extrapolation allows, else failed (dropped or passed through).
   void expire(double now);
   /// Fails every waiting scan (nothing more will come: the end of a bag).
   void flush();
@@ -106,7 +107,9 @@ class ScanPipeline {
     double arrival = 0.0;
   };
 
-  bool ready(const Pending& pending, bool& extrapolate) const;
+  bool ready(const Pending& pending) const;
+  /// tf ends inside the sweep, at most max_extrapolation before its last beam.
+  bool extrapolatable(const Pending& pending) const;
   void correct(const Pending& pending, bool extrapolate, double now);
   void fail(const Pending& pending, const std::string& reason);
   void onTfEvent(TfEvent event, const std::string& text);

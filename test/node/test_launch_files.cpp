@@ -1,0 +1,63 @@
+// The launch files as users call them (launch_files.test): two instances on two scans publish on
+// outputs named after their inputs, never on one topic; a `params:=` file wins over the launch
+// defaults, an argument given on the command line wins over the file.
+#include <gtest/gtest.h>
+#include <ros/ros.h>
+
+#include <map>
+#include <string>
+
+namespace lidar_deskew::test {
+namespace {
+
+std::map<std::string, std::string> advertisedTopics() {
+  ros::master::V_TopicInfo topics;
+  ros::master::getTopics(topics);
+  std::map<std::string, std::string> types;
+  for (const auto& topic : topics)
+    types[topic.name] = topic.datatype;
+  return types;
+}
+
+TEST(LaunchFiles, TwoInstancesPublishOnOutputsNamedAfterTheirInputs) {
+  std::map<std::string, std::string> topics;
+  const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(20.0);
+  while (ros::WallTime::now() < end) {
+    topics = advertisedTopics();
+    if (topics.count("/rear_scan_deskewed_points") && topics.count("/front_scan_deskewed_points"))
+      break;
+    ros::WallDuration(0.1).sleep();
+  }
+  EXPECT_EQ(topics["/front_scan_deskewed"], "sensor_msgs/LaserScan");
+  EXPECT_EQ(topics["/front_scan_deskewed_points"], "sensor_msgs/PointCloud2");
+  EXPECT_EQ(topics["/rear_scan_deskewed"], "sensor_msgs/LaserScan");
+  EXPECT_EQ(topics["/rear_scan_deskewed_points"], "sensor_msgs/PointCloud2");
+  EXPECT_EQ(topics.count("/scan_deskewed"), 0u);
+}
+
+TEST(LaunchFiles, ParamsFileWinsOverDefaultsAndArgumentsWinOverTheFile) {
+  std::string value;
+  // front_deskew: params:=launch_params.yaml (base_frame base_footprint, stamp_at end), reference:=middle
+  ASSERT_TRUE(ros::param::get("/front_deskew/base_frame", value));
+  EXPECT_EQ(value, "base_footprint");  // the file, not the launch default
+  ASSERT_TRUE(ros::param::get("/front_deskew/stamp_at", value));
+  EXPECT_EQ(value, "end");
+  ASSERT_TRUE(ros::param::get("/front_deskew/reference", value));
+  EXPECT_EQ(value, "middle");  // the argument, over the file's "start"
+  EXPECT_FALSE(ros::param::has("/front_deskew/fixed_frame"));  // neither given: the node's default
+  // rear_deskew: the default file, stamp_at:=end on the command line.
+  ASSERT_TRUE(ros::param::get("/rear_deskew/stamp_at", value));
+  EXPECT_EQ(value, "end");
+  ASSERT_TRUE(ros::param::get("/rear_deskew/base_frame", value));
+  EXPECT_EQ(value, "base_link");
+}
+
+}  // namespace
+}  // namespace lidar_deskew::test
+
+int main(int argc, char** argv) {
+  testing::InitGoogleTest(&argc, argv);
+  ros::init(argc, argv, "test_launch_files");
+  ros::NodeHandle nh;
+  return RUN_ALL_TESTS();
+}
