@@ -105,9 +105,9 @@ int main(int argc, char** argv) {
       if (std::find(live_only.begin(), live_only.end(), name) != live_only.end()) {
         return usageError(argv[0],
                           "--" + name +
-                              " is a parameter of the live node only: offline, tf that comes after a "
-                              "scan is in the bag, so nothing is extrapolated, and there are no "
-                              "diagnostics (the summary holds their counters)");
+                              " is a parameter of the live node only (offline, tf that comes after a "
+                              "scan is in the bag, so nothing is extrapolated; there is no input "
+                              "subscription and no diagnostics: the summary holds their counters)");
       }
       if (std::find(names.begin(), names.end(), name) == names.end())
         return usageError(argv[0], "unknown option " + arg);

@@ -156,8 +156,9 @@ void LaserScanDeskewNode::connectCallback() {
     return;
   const bool wanted = scan_publisher_.getNumSubscribers() + cloud_publisher_.getNumSubscribers() > 0;
   if (wanted && !scan_subscriber_) {
-    scan_subscriber_ = nh_.subscribe<sensor_msgs::LaserScan>("scan", 10, &LaserScanDeskewNode::scanCallback,
-                                                             this, ros::TransportHints().tcpNoDelay());
+    scan_subscriber_ = nh_.subscribe<sensor_msgs::LaserScan>("scan", params_.input_queue_size,
+                                                             &LaserScanDeskewNode::scanCallback, this,
+                                                             ros::TransportHints().tcpNoDelay());
   } else if (!wanted && scan_subscriber_) {
     scan_subscriber_.shutdown();
   }

@@ -42,6 +42,8 @@ const ParamSpec kSpecs[] = {
     {"max_extrapolation", "double", "0.0", "s", 0.0, 1.0, false, "", true,
      "after tf_timeout without tf, extrapolate at most this far instead of failing; 0 = never"},
     {"queue_size", "int", "10", "scans", 1.0, 100000.0, false, "", false, "scans waiting for tf at most"},
+    {"input_queue_size", "int", "10", "scans", 1.0, 100000.0, false, "", true,
+     "roscpp's queue of the input subscription (losses there count as lost upstream)"},
     {"rebin_min_gap", "double", "0.05", "m", 0.0, 100.0, false, "", false,
      "contour join distance, constant part"},
     {"rebin_gap_factor", "double", "5.0", "", 0.0, 1000.0, false, "", false,
@@ -169,6 +171,7 @@ DeskewParams DeskewParams::load(const ParamSource& source) {
   source.get("max_tf_gap", params.max_tf_gap);
   source.get("max_extrapolation", params.max_extrapolation);
   source.get("queue_size", params.queue_size);
+  source.get("input_queue_size", params.input_queue_size);
   source.get("rebin_min_gap", params.rebin.min_gap);
   source.get("rebin_gap_factor", params.rebin.gap_factor);
   source.get("diagnostics_period", params.diagnostics_period);
@@ -215,6 +218,7 @@ void DeskewParams::validate() const {
   checkNumber("max_tf_gap", max_tf_gap);
   checkNumber("max_extrapolation", max_extrapolation);
   checkNumber("queue_size", queue_size);
+  checkNumber("input_queue_size", input_queue_size);
   checkNumber("rebin_min_gap", rebin.min_gap);
   checkNumber("rebin_gap_factor", rebin.gap_factor);
   checkNumber("diagnostics_period", diagnostics_period);

@@ -137,7 +137,7 @@ TEST(Params, UnknownNamesAreNamedWithTheClosestParameter) {
 // The live-only parameters are the ones deskew_bag refuses.
 TEST(Params, LiveOnlyParameters) {
   const auto& live = DeskewParams::liveOnlyNames();
-  EXPECT_EQ(live, (std::vector<std::string>{"max_extrapolation", "diagnostics_period"}));
+  EXPECT_EQ(live, (std::vector<std::string>{"max_extrapolation", "input_queue_size", "diagnostics_period"}));
 }
 
 }  // namespace

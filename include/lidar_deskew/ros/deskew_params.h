@@ -46,6 +46,7 @@ struct DeskewParams {
   double max_tf_gap = 0.5;          ///< [s] refuse sweeps tf interpolates across a longer gap; 0 = never
   double max_extrapolation = 0.0;   ///< [s] extrapolate tf this far with the newest velocity; 0 = never
   int queue_size = 10;              ///< scans waiting for tf at most (older ones are dropped)
+  int input_queue_size = 10;        ///< roscpp's queue of the input subscription (live only)
   double diagnostics_period = 1.0;  ///< [s]
 
   /// Reads every parameter (defaults above for the absent ones) and validates. Throws
