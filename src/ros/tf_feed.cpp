@@ -61,12 +61,13 @@ bool TfFeed::add(const geometry_msgs::TransformStamped& transform_in, bool is_st
       return true;
     }
     statics_[child] = transform;
-    parents_[child] = parent;
+    setParent(child, parent);
     return true;
   }
 
   bool in_time = true;
   if (moving_.insert(child).second) {
+    chain_ = chainChildren();
     const auto kept = statics_.find(child);
     if (kept != statics_.end()) {
       ignored_statics_.insert(child);
@@ -77,9 +78,8 @@ bool TfFeed::add(const geometry_msgs::TransformStamped& transform_in, bool is_st
       rebuildWithout(child);
     }
   }
-  parents_[child] = parent;
-  const std::set<std::string> chain = chainChildren();
-  const bool on_chain = chain.count(child) > 0;
+  setParent(child, parent);
+  const bool on_chain = chain_.count(child) > 0;
   const core::TimeNs stamp = toNs(transform.header.stamp);
   if (on_chain) {
     // Each link against its own newest stamp: links of one chain may lag or lead each other by more
@@ -103,7 +103,7 @@ bool TfFeed::add(const geometry_msgs::TransformStamped& transform_in, bool is_st
   if (on_chain) {
     motion_.addSampleTime(stamp);
     // One dynamic link straight from fixed to base: its stamps are all of the chain's samples.
-    motion_.setSingleLink(chain.size() == 1 && parent == fixed_frame_ && child == base_frame_);
+    motion_.setSingleLink(chain_.size() == 1 && parent == fixed_frame_ && child == base_frame_);
   }
   return in_time;
 }
@@ -120,6 +120,14 @@ void TfFeed::rebuildWithout(const std::string& child) {
   motion_.setBuffer(*buffer_);
   motion_.clearSampleTimes();
   newest_link_stamps_.clear();
+}
+
+void TfFeed::setParent(const std::string& child, const std::string& parent) {
+  std::string& known = parents_[child];
+  if (known == parent)
+    return;  // the tree is as it was: so is the chain (not walked again for every transform)
+  known = parent;
+  chain_ = chainChildren();
 }
 
 std::set<std::string> TfFeed::chainChildren() const {

@@ -72,6 +72,8 @@ class TfFeed {
 
  private:
   void rebuildWithout(const std::string& child);
+  /// Records child's parent; the chain is walked again only when the tree changed.
+  void setParent(const std::string& child, const std::string& parent);
   std::set<std::string> chainChildren() const;
   void notify(TfEvent event, const std::string& text) const;
 
@@ -84,6 +86,7 @@ class TfFeed {
   std::map<std::string, geometry_msgs::TransformStamped> statics_;  // child -> the static kept for it
   std::map<std::string, std::string> parents_;                      // child -> parent, as last seen
   std::set<std::string> moving_;                                    // children of dynamic transforms
+  std::set<std::string> chain_;  // the moving frames from base_frame up to fixed_frame (chainChildren)
   std::set<std::string> ignored_statics_;  // children whose static parent was reported left out
   std::map<std::string, core::TimeNs> newest_link_stamps_;  // [ns] by child frame, links of the chain
   std::map<std::string, mrpt::poses::CPose3D> mounts_;      // the last mount of each scan frame
