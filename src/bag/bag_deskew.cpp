@@ -6,7 +6,6 @@
 
 #include <chrono>
 #include <cstdio>
-#include <deque>
 #include <filesystem>
 #include <memory>
 #include <set>
@@ -34,20 +33,6 @@ std::string joined(const std::vector<std::string>& items) {
     text += (text.empty() ? "" : ", ") + item;
   return text.empty() ? "none" : text;
 }
-
-/// One scan topic: its pipeline, and the record times of the scans it still holds.
-struct TopicStream {
-  std::unique_ptr<ros_adapter::ScanPipeline> pipeline;
-  /// The scans queued in the pipeline and not yet resolved, in arrival order, with their record times:
-  /// the pipeline's queue is always the newest of them (trimmed after every call).
-  std::deque<std::pair<sensor_msgs::LaserScan::ConstPtr, ros::Time>> waiting;
-
-  /// Forgets the scans the pipeline no longer holds (served, dropped, or cleared by a time jump).
-  void trim() {
-    while (waiting.size() > pipeline->waiting())
-      waiting.pop_front();
-  }
-};
 
 }  // namespace
 
@@ -93,13 +78,12 @@ BagDeskewSummary deskewBag(const BagDeskewOptions& options) {
     summary.chosen_topics = available;
     inform("no --scan-topic given: correcting " + joined(available) + " (the bag's LaserScan topics)");
   }
-  std::map<std::string, TopicStream> streams;
+  std::map<std::string, std::unique_ptr<ros_adapter::ScanPipeline>> streams;  // by scan topic
   for (const std::string& topic : summary.chosen_topics) {
     if (std::find(available.begin(), available.end(), topic) == available.end()) {
       throw std::runtime_error(options.input + " has no LaserScan on " + topic +
                                "; its LaserScan topics: " + joined(available));
     }
-    TopicStream& stream = streams[topic];
     // Each kind of note once per topic; the counts are in the summary.
     auto said = std::make_shared<std::set<PipelineEvent>>();
     const auto report = [inform, topic, said](PipelineEvent event, const std::string& text) {
@@ -107,36 +91,35 @@ BagDeskewSummary deskewBag(const BagDeskewOptions& options) {
       if (event == PipelineEvent::kStaticIgnored || said->insert(event).second)
         inform(topic + ": " + text);
     };
-    stream.pipeline = std::make_unique<ros_adapter::ScanPipeline>(options.params, nullptr, report);
+    streams[topic] = std::make_unique<ros_adapter::ScanPipeline>(options.params, nullptr, report);
   }
+
+  const auto corrected = [&streams] {
+    std::size_t scans = 0;
+    for (const auto& [name, pipeline] : streams)
+      scans += pipeline->counters().published;
+    return scans;
+  };
 
   const std::string temporary = options.output + ".tmp-" + std::to_string(::getpid());
   try {
     rosbag::Bag output(temporary, rosbag::bagmode::Write);
     output.setCompression(compression);
-    for (auto& [topic_name, stream] : streams) {
+    for (auto& [topic_name, pipeline] : streams) {
       const std::string topic = topic_name;  // captured by value: the lambda outlives this loop
-      TopicStream* owner = &stream;
-      // Outputs are written at their scan's record time, next to it in the bag.
-      stream.pipeline->setPublish(
-          [&output, &options, topic, owner](const ros_adapter::PipelineResult& result) {
-            // Served in arrival order: the scans before this one were dropped.
-            while (!owner->waiting.empty() && owner->waiting.front().first != result.input)
-              owner->waiting.pop_front();
-            if (owner->waiting.empty())
-              throw std::logic_error("an output for a scan deskew_bag did not give");
-            const ros::Time record_time = owner->waiting.front().second;
-            owner->waiting.pop_front();
-            output.write(options.replace ? topic : topic + "_deskewed", record_time, *result.outputs.scan);
-            output.write(topic + "_deskewed_points", record_time, *result.outputs.cloud);
-          });
+      // Outputs are written at their scan's record time (the id it was given), next to it in the bag.
+      pipeline->setPublish([&output, &options, topic](const ros_adapter::PipelineResult& result) {
+        ros::Time record_time;
+        record_time.fromNSec(result.id);
+        output.write(options.replace ? topic : topic + "_deskewed", record_time, *result.outputs.scan);
+        output.write(topic + "_deskewed_points", record_time, *result.outputs.cloud);
+      });
     }
 
     rosbag::View view(input);
     const double begin = view.getBeginTime().toSec();
     const double span = std::max(1e-9, view.getEndTime().toSec() - begin);
     auto last_progress = std::chrono::steady_clock::now();
-    std::size_t corrected = 0;
     for (const rosbag::MessageInstance& message : view) {
       if (options.interrupted && options.interrupted->load())
         throw Interrupted();
@@ -149,10 +132,8 @@ BagDeskewSummary deskewBag(const BagDeskewOptions& options) {
         output.write(topic, message.getTime(), message, message.getConnectionHeader());
         if (topic == kTfTopic || topic == kTfStaticTopic) {
           if (const auto transforms = message.instantiate<tf2_msgs::TFMessage>()) {
-            for (auto& [name, each] : streams) {
-              each.pipeline->addTransforms(transforms->transforms, topic == kTfStaticTopic, now);
-              each.trim();
-            }
+            for (auto& [name, pipeline] : streams)
+              pipeline->addTransforms(transforms->transforms, topic == kTfStaticTopic, now);
           }
         }
       } else {
@@ -164,35 +145,23 @@ BagDeskewSummary deskewBag(const BagDeskewOptions& options) {
         // The scan as read (read once), with its original connection header.
         output.write(options.replace ? topic + "_raw" : topic, message.getTime(), scan,
                      message.getConnectionHeader());
-        TopicStream& target = stream->second;
-        target.waiting.emplace_back(scan, message.getTime());
-        const std::uint64_t malformed = target.pipeline->counters().dropped_invalid;
-        target.pipeline->addScan(scan, now);
-        if (target.pipeline->counters().dropped_invalid > malformed)
-          target.waiting.pop_back();  // never queued
-        target.trim();
+        stream->second->addScan(scan, now, message.getTime().toNSec());
       }
-      for (auto& [name, each] : streams) {
-        each.pipeline->expire(now);  // waiting measured in record time, as live on the wall clock
-        each.trim();
-      }
+      for (auto& [name, pipeline] : streams)
+        pipeline->expire(now);  // waiting measured in record time, as live on the wall clock
 
       const auto wall = std::chrono::steady_clock::now();
       if (options.progress && wall - last_progress > std::chrono::milliseconds(200)) {
-        corrected = 0;
-        for (const auto& [name, each] : streams)
-          corrected += each.pipeline->counters().published;
-        options.progress((now - begin) / span, corrected);
+        options.progress((now - begin) / span, corrected());
         last_progress = wall;
       }
     }
-    for (auto& [topic, stream] : streams) {
-      stream.pipeline->flush();  // nothing more will come: what still waits has no tf
-      stream.trim();
-      summary.counters[topic] = stream.pipeline->counters();
+    for (auto& [topic, pipeline] : streams) {
+      pipeline->flush();  // nothing more will come: what still waits has no tf
+      summary.counters[topic] = pipeline->counters();
       const ros_adapter::PipelineCounters& counters = summary.counters[topic];
       if (counters.received > 0 && counters.published == 0) {
-        const ros_adapter::TfFeed& tf = stream.pipeline->tf();
+        const ros_adapter::TfFeed& tf = pipeline->tf();
         std::string error;
         if (!tf.buffer().canTransform(tf.fixedFrame(), tf.baseFrame(), ros::Time(0), &error)) {
           throw std::runtime_error(options.input + " has no tf from '" + tf.fixedFrame() + "' to '" +
@@ -213,12 +182,8 @@ BagDeskewSummary deskewBag(const BagDeskewOptions& options) {
     std::remove(temporary.c_str());
     throw;
   }
-  if (options.progress) {
-    std::size_t corrected = 0;
-    for (const auto& [name, counters] : summary.counters)
-      corrected += counters.published;
-    options.progress(1.0, corrected);
-  }
+  if (options.progress)
+    options.progress(1.0, corrected());
   return summary;
 }
 

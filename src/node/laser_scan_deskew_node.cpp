@@ -145,6 +145,10 @@ double LaserScanDeskewNode::latencyP99Locked() const {
 
 LaserScanDeskewNode::Counters LaserScanDeskewNode::counters() const {
   std::lock_guard<std::mutex> lock(mutex_);
+  return countersLocked();
+}
+
+LaserScanDeskewNode::Counters LaserScanDeskewNode::countersLocked() const {
   Counters counters = timing_;
   static_cast<ros_adapter::PipelineCounters&>(counters) = pipeline_.counters();
   return counters;
@@ -256,8 +260,7 @@ void LaserScanDeskewNode::publish(const ros_adapter::PipelineResult& result) {
 
 void LaserScanDeskewNode::produceDiagnostics(diagnostic_updater::DiagnosticStatusWrapper& status) {
   std::lock_guard<std::mutex> lock(mutex_);
-  Counters counters = timing_;
-  static_cast<ros_adapter::PipelineCounters&>(counters) = pipeline_.counters();
+  const Counters counters = countersLocked();
   const ros::WallTime now = ros::WallTime::now();
   const double elapsed = std::max(1e-9, (now - last_diagnostics_).toSec());
   const Counters& was = counters_at_last_diagnostics_;

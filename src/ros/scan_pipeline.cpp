@@ -122,7 +122,7 @@ void ScanPipeline::addTransforms(const std::vector<geometry_msgs::TransformStamp
   serveReady(now);
 }
 
-void ScanPipeline::addScan(const sensor_msgs::LaserScan::ConstPtr& message, double now) {
+void ScanPipeline::addScan(const sensor_msgs::LaserScan::ConstPtr& message, double now, std::uint64_t id) {
   ++counters_.received;
   // A gap in header.seq is scans lost upstream; a smaller seq is a restarted driver or a looped bag,
   // and 0 is taken for "unset".
@@ -132,6 +132,7 @@ void ScanPipeline::addScan(const sensor_msgs::LaserScan::ConstPtr& message, doub
   last_seq_ = seq;
   Pending pending;
   pending.arrival = now;
+  pending.id = id;
   try {
     pending.prepared = processor_.prepare(message);
   } catch (const std::exception& error) {  // core::InvalidInput, or out of memory for an absurd scan
@@ -255,9 +256,8 @@ void ScanPipeline::correct(const Pending& pending, bool extrapolate, double now)
     return;
   }
   ++counters_.published;
-  result.input = pending.prepared.message;
   result.corrected = true;
-  result.arrival = pending.arrival;
+  result.id = pending.id;
   result.waited = std::max(0.0, now - pending.arrival);
   result.correction = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   publish_(result);
@@ -273,9 +273,8 @@ void ScanPipeline::fail(const Pending& pending, const std::string& reason) {
   ++counters_.passed_through;
   report_(PipelineEvent::kTfFailure, "passing scan at " + stamp + " through uncorrected: " + reason);
   PipelineResult result;
-  result.input = pending.prepared.message;
   result.outputs = processor_.passThrough(pending.prepared);
-  result.arrival = pending.arrival;
+  result.id = pending.id;
   publish_(result);
 }
 

@@ -65,6 +65,7 @@ class LaserScanDeskewNode {
   void report(ros_adapter::PipelineEvent event, const std::string& text);
   void produceDiagnostics(diagnostic_updater::DiagnosticStatusWrapper& status);
   double latencyP99Locked() const;
+  Counters countersLocked() const;  ///< the pipeline's counters with the node's timing
 
   ros::NodeHandle nh_;
   ros::NodeHandle private_nh_;

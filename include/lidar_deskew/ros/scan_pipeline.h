@@ -59,12 +59,11 @@ enum class PipelineEvent {
 
 /// A scan's outputs, handed to the owner.
 struct PipelineResult {
-  sensor_msgs::LaserScan::ConstPtr input;  ///< the scan as it arrived
   DeskewedOutputs outputs;
   bool corrected = false;   ///< false: passed through uncorrected
   double waited = 0.0;      ///< [s] on the owner's clock, from arrival until tf covered it
   double correction = 0.0;  ///< [s] wall time spent correcting and building the messages
-  double arrival = 0.0;     ///< [s] the scan's arrival on the owner's clock
+  std::uint64_t id = 0;     ///< what the owner gave addScan for this scan (deskew_bag: its record time)
 };
 
 /// Not thread-safe: the owner serialises calls.
@@ -82,8 +81,9 @@ class ScanPipeline {
   /// Transforms from /tf or /tf_static at `now` [s]; serves the scans they complete.
   void addTransforms(const std::vector<geometry_msgs::TransformStamped>& transforms, bool is_static,
                      double now);
-  /// A scan arriving at `now` [s]: checked, queued, served if tf already covers it.
-  void addScan(const sensor_msgs::LaserScan::ConstPtr& message, double now);
+  /// A scan arriving at `now` [s]: checked, queued, served if tf already covers it. `id` comes back
+  /// with its result.
+  void addScan(const sensor_msgs::LaserScan::ConstPtr& message, double now, std::uint64_t id = 0);
   /// Serves the scans tf covers, in arrival order (a waiting scan holds back those behind it).
   void serveReady(double now);
   /// The scans that have waited longer than tf_timeout at `now` [s]: extrapolated when
@@ -105,6 +105,7 @@ class ScanPipeline {
     PreparedScan prepared;
     std::string frame;  // normalised frame id
     double arrival = 0.0;
+    std::uint64_t id = 0;
   };
 
   bool ready(const Pending& pending) const;
