@@ -37,6 +37,9 @@ class ExtrapolatingMotion final : public core::MotionSource {
 /// A larger jump of header.seq is taken for a driver that restarted, not for lost scans.
 constexpr std::uint32_t kMaxSeqGap = 100000;
 
+/// [s] The owner's clock going back by more than this is a time jump (as tf's stamps: TfFeed).
+constexpr double kClockJump = 1.0;
+
 }  // namespace
 
 std::vector<std::pair<std::string, std::uint64_t>> namedCounters(const PipelineCounters& c) {
@@ -100,7 +103,8 @@ void ScanPipeline::onTfEvent(TfEvent event, const std::string& text) {
     case TfEvent::kTimeJump:
       ++counters_.time_jumps;
       report_(PipelineEvent::kTimeJump, text + " and " + std::to_string(pending_.size()) + " waiting scans");
-      pending_.clear();
+      failWaiting("time went backwards");
+      clock_follows_tf_ = true;  // the owner's clock may follow tf back: that is this jump, not another
       break;
     case TfEvent::kBadTransform:
       report_(PipelineEvent::kBadTransform, text);
@@ -115,14 +119,53 @@ void ScanPipeline::onTfEvent(TfEvent event, const std::string& text) {
   }
 }
 
+void ScanPipeline::observeClock(double now) {
+  if (!clock_ || now + kClockJump >= *clock_) {
+    clock_ = std::max(now, clock_.value_or(now));
+    return;
+  }
+  const double back = *clock_ - now;
+  clock_ = now;
+  if (clock_follows_tf_) {
+    // tf went back first (counted then): the scans waiting now came on the new time line, their wait
+    // measured from a clock not yet back. It starts again.
+    clock_follows_tf_ = false;
+    for (Pending& pending : pending_)
+      pending.arrival = now;
+    return;
+  }
+  ++counters_.time_jumps;
+  report_(PipelineEvent::kTimeJump, "the clock went back " + std::to_string(back) +
+                                        " s: clearing the tf cache and " + std::to_string(pending_.size()) +
+                                        " waiting scans");
+  tf_.forgetMotion();
+  failWaiting("the clock went back");
+}
+
+void ScanPipeline::failWaiting(const std::string& reason) {
+  std::deque<Pending> waiting;
+  waiting.swap(pending_);
+  for (const Pending& pending : waiting) {
+    if (!tf_.mountKnown(pending.frame)) {
+      ++counters_.dropped_mount;
+      report_(PipelineEvent::kMountMissing, "dropping scan: no transform " + tf_.baseFrame() + " -> " +
+                                                pending.frame + " (the laser mount)");
+    } else {
+      fail(pending, reason);
+    }
+  }
+}
+
 void ScanPipeline::addTransforms(const std::vector<geometry_msgs::TransformStamped>& transforms,
                                  bool is_static, double now) {
+  observeClock(now);
   for (const geometry_msgs::TransformStamped& transform : transforms)
     tf_.add(transform, is_static);
   serveReady(now);
 }
 
 void ScanPipeline::addScan(const sensor_msgs::LaserScan::ConstPtr& message, double now, std::uint64_t id) {
+  observeClock(now);
   ++counters_.received;
   // A gap in header.seq is scans lost upstream; a smaller seq is a restarted driver or a looped bag,
   // and 0 is taken for "unset".
@@ -181,6 +224,7 @@ bool ScanPipeline::extrapolatable(const Pending& pending) const {
 }
 
 void ScanPipeline::serveReady(double now) {
+  observeClock(now);
   while (!pending_.empty()) {
     if (!ready(pending_.front()))
       return;  // tf only grows: later scans wait too
@@ -210,17 +254,7 @@ void ScanPipeline::expire(double now) {
 }
 
 void ScanPipeline::flush() {
-  while (!pending_.empty()) {
-    const Pending last = std::move(pending_.front());
-    pending_.pop_front();
-    if (!tf_.mountKnown(last.frame)) {
-      ++counters_.dropped_mount;
-      report_(PipelineEvent::kMountMissing,
-              "dropping scan: no transform " + tf_.baseFrame() + " -> " + last.frame + " (the laser mount)");
-    } else {
-      fail(last, "tf does not cover the sweep");
-    }
-  }
+  failWaiting("tf does not cover the sweep");
 }
 
 void ScanPipeline::correct(const Pending& pending, bool extrapolate, double now) {

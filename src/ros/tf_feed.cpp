@@ -89,9 +89,7 @@ bool TfFeed::add(const geometry_msgs::TransformStamped& transform_in, bool is_st
       notify(TfEvent::kTimeJump, "time went backwards (" + parent + " -> " + child + ", " +
                                      std::to_string(core::nsToSeconds(newest - stamp)) +
                                      " s): clearing the tf cache");
-      buffer_->clear();
-      motion_.clearSampleTimes();
-      newest_link_stamps_.clear();
+      forgetMotion();
       in_time = false;
     }
     newest_link_stamps_[child] = std::max(newest_link_stamps_[child], stamp);
@@ -106,6 +104,12 @@ bool TfFeed::add(const geometry_msgs::TransformStamped& transform_in, bool is_st
     motion_.setSingleLink(chain_.size() == 1 && parent == fixed_frame_ && child == base_frame_);
   }
   return in_time;
+}
+
+void TfFeed::forgetMotion() {
+  buffer_->clear();
+  motion_.clearSampleTimes();
+  newest_link_stamps_.clear();
 }
 
 void TfFeed::rebuildWithout(const std::string& child) {

@@ -1,6 +1,6 @@
 // The live node on a simulated clock (use_sim_time, as beside `rosbag play --clock`): waiting for tf
 // counts clock time, so a paused clock drops nothing; /diagnostics keeps coming when the clock stands
-// still or goes back (a bag played again). This test owns /clock.
+// still or goes back (a bag played again); a /clock reset alone is a time jump. This test owns /clock.
 #include <gtest/gtest.h>
 #include <rosgraph_msgs/Clock.h>
 
@@ -17,6 +17,14 @@ class SimClock {
     clock.clock.fromSec(seconds);
     publisher_.publish(clock);
   }
+  /// Once the node listens: sets the clock and waits (wall time) until this process sees it.
+  bool startAt(double seconds) {
+    LiveRig waiter;
+    if (!waiter.waitFor([&] { return publisher_.getNumSubscribers() > 0; }, 10.0))
+      return false;
+    set(seconds);
+    return waiter.waitFor([&] { return ros::Time::now().toSec() == seconds; }, 5.0);
+  }
   ros::Publisher publisher_;
 };
 
@@ -24,10 +32,7 @@ constexpr double kScanPeriod = 1.0 / 40.0;
 
 TEST(SimTime, PausedClockDropsNothingAndDiagnosticsGoOnWhenTimeGoesBack) {
   SimClock clock;
-  LiveRig waiter;  // only to wait (wall time) until the node listens to /clock
-  ASSERT_TRUE(waiter.waitFor([&] { return clock.publisher_.getNumSubscribers() > 0; }, 10.0));
-  clock.set(1000.0);
-  ASSERT_TRUE(waiter.waitFor([&] { return ros::Time::now().toSec() == 1000.0; }, 5.0));
+  ASSERT_TRUE(clock.startAt(1000.0));
 
   LiveRig rig;  // t = 0 is sim time 1000 s
   ASSERT_TRUE(rig.connect());
@@ -52,6 +57,25 @@ TEST(SimTime, PausedClockDropsNothingAndDiagnosticsGoOnWhenTimeGoesBack) {
   const std::size_t before = rig.diagnosticsReceived();
   rig.spinFor(3.0);
   EXPECT_GE(rig.diagnosticsReceived(), before + 2);
+}
+
+// A /clock reset alone (a simulator restarted; no tf of the new time line yet) while a scan waits: it
+// is a time jump. Before, the scan waited until the clock came back to where it had been.
+TEST(SimTime, ClockResetAloneIsATimeJump) {
+  SimClock clock;
+  ASSERT_TRUE(clock.startAt(2000.0));
+
+  LiveRig rig;  // t = 0 is sim time 2000 s
+  ASSERT_TRUE(rig.connect());
+  rig.publishTfUntil(0.1);
+  rig.publishScan(0.1);  // its tf never comes
+  ASSERT_TRUE(rig.waitFor([&] { return rig.diagnosticNumber("waiting scans") == 1.0; }, 5.0));
+  const double jumps = rig.diagnosticNumber("time jumps");
+  const double dropped = rig.diagnosticNumber("dropped: tf");
+  clock.set(100.0);
+  EXPECT_TRUE(rig.waitFor([&] { return rig.diagnosticNumber("waiting scans") == 0.0; }, 5.0));
+  EXPECT_EQ(rig.diagnosticNumber("time jumps"), jumps + 1);
+  EXPECT_EQ(rig.diagnosticNumber("dropped: tf"), dropped + 1);
 }
 
 }  // namespace

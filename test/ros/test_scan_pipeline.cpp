@@ -187,11 +187,53 @@ TEST(ScanPipeline, TimeJumpClearsTheQueueOnceAndRecovers) {
   run.tfUntil(0.05);
   EXPECT_EQ(run.pipeline.waiting(), 0u);
   EXPECT_EQ(run.pipeline.counters().time_jumps, 1u);
+  EXPECT_EQ(run.pipeline.counters().dropped_tf, 1u);  // the waiting scan is accounted for
   for (int k = 0; k < 4; ++k)
     run.scan(0.1 + k * 0.025);
   EXPECT_EQ(run.pipeline.counters().time_jumps, 1u);
   EXPECT_EQ(run.pipeline.counters().published, 4u);
   EXPECT_LT(rms(run.cloudDistances()), 1e-3);
+}
+
+// A /clock reset seen only on the owner's clock (no tf of the new time line yet): without it the
+// waiting scan would wait until the clock came back to where it was. It is a time jump, once.
+TEST(ScanPipeline, ClockResetAloneIsATimeJump) {
+  PipelineRun run{Drive()};
+  run.statics(0.0);
+  run.tfUntil(2.0);
+  run.pipeline.addScan(run.drive.scanAt(3.0), 3.0);  // waits: tf ends at 2 s
+  run.pipeline.expire(0.5);                          // the clock alone goes back 2.5 s
+  EXPECT_EQ(run.pipeline.counters().time_jumps, 1u);
+  EXPECT_EQ(run.pipeline.waiting(), 0u);
+  EXPECT_EQ(run.pipeline.counters().dropped_tf, 1u);
+  EXPECT_TRUE(run.said(PipelineEvent::kTimeJump));
+  // The new time line, tf from -0.1 s again: no second jump, scans corrected.
+  run.tf_until = -0.1;
+  for (int k = 0; k < 4; ++k)
+    run.scan(0.6 + k * 0.025);
+  EXPECT_EQ(run.pipeline.counters().time_jumps, 1u);
+  EXPECT_EQ(run.pipeline.counters().published, 4u);
+  EXPECT_LT(rms(run.cloudDistances()), 1e-3);
+}
+
+// tf goes back first, the clock follows (a looped bag, two connections): one jump, and a scan of the
+// new time line that came in between waits its tf_timeout from the clock's return, not from the old
+// clock (it would otherwise wait for as long as the clock had run).
+TEST(ScanPipeline, ClockFollowingTfBackIsTheSameJump) {
+  PipelineRun run{Drive()};
+  run.statics(0.0);
+  run.tfUntil(5.0);
+  const double old_clock = 5.0;
+  for (double t = 0.0; t <= 0.1 + 1e-9; t += kTfPeriod)  // tf of the new time line, old clock
+    run.pipeline.addTransforms({run.drive.motionAt(t)}, false, old_clock);
+  EXPECT_EQ(run.pipeline.counters().time_jumps, 1u);
+  run.pipeline.addScan(run.drive.scanAt(0.1), old_clock);  // waits for tf up to its end
+  run.pipeline.expire(0.14);                               // the clock comes back
+  EXPECT_EQ(run.pipeline.counters().time_jumps, 1u);
+  EXPECT_EQ(run.pipeline.waiting(), 1u);
+  run.pipeline.expire(0.14 + run.pipeline.params().tf_timeout + 0.01);  // now it has waited too long
+  EXPECT_EQ(run.pipeline.waiting(), 0u);
+  EXPECT_EQ(run.pipeline.counters().dropped_tf, 1u);
 }
 
 // Scans lost upstream show as gaps in header.seq; an unset seq (always 0) or a restart counts nothing.

@@ -33,7 +33,9 @@ struct PipelineCounters {
   std::uint64_t time_fallbacks = 0;   ///< scans timed by scan_time or scan_period (time_increment 0)
   std::uint64_t tf_gaps = 0;          ///< refused: tf has a gap longer than max_tf_gap in the sweep
   std::uint64_t mount_changes = 0;    ///< the mount base_frame -> scan frame changed
-  std::uint64_t time_jumps = 0;       ///< time went backwards: tf cache and queue cleared
+  /// Time went backwards, in tf's stamps or on the owner's clock (a bag loop, a /clock reset): the tf
+  /// cache cleared, the waiting scans failed (dropped or passed through, and counted so).
+  std::uint64_t time_jumps = 0;
   std::uint64_t statics_ignored = 0;  ///< /tf_static parents of moving frames left out
   /// Scans lost before the pipeline saw them (a driver's, the network's or roscpp's input queue), from
   /// gaps in header.seq; 0 when the driver leaves seq unset.
@@ -78,6 +80,8 @@ class ScanPipeline {
   ScanPipeline(const ScanPipeline&) = delete;  // its tf feed reports to `this`
   ScanPipeline& operator=(const ScanPipeline&) = delete;
 
+  /// Every `now` below is on the owner's clock. When it goes back by more than a second and tf has not
+  /// (a /clock reset seen first, or alone), that is a time jump as when tf's stamps go back.
   /// Transforms from /tf or /tf_static at `now` [s]; serves the scans they complete.
   void addTransforms(const std::vector<geometry_msgs::TransformStamped>& transforms, bool is_static,
                      double now);
@@ -108,6 +112,11 @@ class ScanPipeline {
     std::uint64_t id = 0;
   };
 
+  /// Every call's `now` passes here: the clock going back by more than a second is a time jump (a /clock
+  /// reset seen before any tf of the new time line, or alone), unless tf's stamps went back just before.
+  void observeClock(double now);
+  /// Fails every waiting scan (dropped without a mount, else per on_tf_failure): their tf will not come.
+  void failWaiting(const std::string& reason);
   bool ready(const Pending& pending) const;
   /// tf ends inside the sweep, at most max_extrapolation before its last beam.
   bool extrapolatable(const Pending& pending) const;
@@ -123,6 +132,8 @@ class ScanPipeline {
   std::deque<Pending> pending_;
   PipelineCounters counters_;
   std::optional<std::uint32_t> last_seq_;  // header.seq of the last scan received
+  std::optional<double> clock_;            // [s] the newest `now` given (since the last time jump)
+  bool clock_follows_tf_ = false;          // tf went back; the clock going back next is the same jump
 };
 
 std::string toString(PipelineEvent event);

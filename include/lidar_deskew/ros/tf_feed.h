@@ -53,6 +53,10 @@ class TfFeed {
   /// backwards and the dynamic cache was cleared before this transform was added.
   bool add(const geometry_msgs::TransformStamped& transform, bool is_static);
 
+  /// Clears the dynamic tf (statics and the mounts seen stay): time went backwards on the owner's clock.
+  /// The next /tf is then taken as the new time line, not as a jump.
+  void forgetMotion();
+
   /// True when tf answers fixed -> base at both times [ns].
   bool covers(core::TimeNs first, core::TimeNs last) const;
   /// [ns] The newest time tf answers fixed -> base at; 0 when it answers none.
