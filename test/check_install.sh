@@ -21,6 +21,8 @@ for path in \
   include/lidar_deskew/ros/tf_motion.h \
   include/lidar_deskew/ros/scan_pipeline.h \
   include/lidar_deskew/node/laser_scan_deskew_node.h \
+  include/lidar_deskew/node/config_params.h \
+  include/lidar_deskew/DeskewConfig.h \
   include/lidar_deskew/bag/bag_deskew.h \
   include/lidar_deskew/eval/evaluate.h \
   share/lidar_deskew/package.xml \

@@ -1,10 +1,14 @@
 #include "lidar_deskew/node/laser_scan_deskew_node.h"
 
+#include <dynamic_reconfigure/server.h>
 #include <pcl_ros/point_cloud.h>
 
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <cstdio>
+
+#include "lidar_deskew/node/config_params.h"
 
 namespace lidar_deskew::node {
 namespace {
@@ -56,13 +60,52 @@ double waitClock(const ros::WallTime& wall) {
   return ros::Time::isSimTime() ? ros::Time::now().toSec() : wall.toSec();
 }
 
+/// "name value" of each parameter whose value differs between two configs.
+std::string changes(const DeskewConfig& before, const DeskewConfig& after) {
+  std::string text;
+  for (const DeskewConfig::AbstractParamDescriptionConstPtr& description :
+       DeskewConfig::__getParamDescriptions__()) {
+    boost::any was;
+    boost::any now;
+    description->getValue(before, was);
+    description->getValue(after, now);
+    std::string value;
+    if (const double* number = boost::any_cast<double>(&now)) {
+      if (*number == boost::any_cast<double>(was))
+        continue;
+      char buffer[32];
+      std::snprintf(buffer, sizeof buffer, "%g", *number);
+      value = buffer;
+    } else if (const int* integer = boost::any_cast<int>(&now)) {
+      if (*integer == boost::any_cast<int>(was))
+        continue;
+      value = std::to_string(*integer);
+    } else if (const std::string* string = boost::any_cast<std::string>(&now)) {
+      if (*string == boost::any_cast<std::string>(was))
+        continue;
+      value = *string;
+    }
+    text += (text.empty() ? "" : ", ") + description->name + " " + value;
+  }
+  return text;
+}
+
 }  // namespace
+
+/// The server and the last config taken (what a refused change goes back to).
+struct LaserScanDeskewNode::Reconfigure {
+  explicit Reconfigure(const ros::NodeHandle& private_nh) : server(private_nh) {}
+  dynamic_reconfigure::Server<DeskewConfig> server;
+  DeskewConfig taken;
+  bool first = true;
+};
 
 LaserScanDeskewNode::LaserScanDeskewNode(ros::NodeHandle nh, ros::NodeHandle private_nh, std::string name)
     : nh_(nh),
       private_nh_(private_nh),
       name_(std::move(name)),
       params_(ros_adapter::DeskewParams::load(private_nh)),
+      input_queue_size_(params_.input_queue_size),
       pipeline_(
           params_, [this](const ros_adapter::PipelineResult& result) { publish(result); },
           [this](PipelineEvent event, const std::string& text) { report(event, text); }) {
@@ -96,6 +139,29 @@ LaserScanDeskewNode::LaserScanDeskewNode(ros::NodeHandle nh, ros::NodeHandle pri
     cloud_publisher_ =
         nh_.advertise<ros_adapter::DeskewedCloud>(input + "_deskewed_points", 10, connect, connect);
   }
+  // dynamic_reconfigure: the server reads the parameters as loaded above and calls back at once.
+  reconfigure_ = std::make_unique<Reconfigure>(private_nh_);
+  reconfigure_->server.setCallback([this](DeskewConfig& config, std::uint32_t /*level*/) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (reconfigure_->first)
+      reconfigure_->taken = config;
+    try {
+      const ros_adapter::DeskewParams next =
+          ros_adapter::DeskewParams::load(node::ConfigParams(config), params_);
+      pipeline_.reconfigure(next);
+      params_ = next;
+      if (!reconfigure_->first) {
+        const std::string changed = changes(reconfigure_->taken, config);
+        ROS_INFO("%s: reconfigured: %s", name_.c_str(),
+                 changed.empty() ? "nothing changed" : changed.c_str());
+      }
+      reconfigure_->taken = config;
+    } catch (const core::InvalidInput& error) {
+      ROS_ERROR("%s: reconfigure refused, keeping the running values: %s", name_.c_str(), error.what());
+      config = reconfigure_->taken;  // the server publishes what is in force
+    }
+    reconfigure_->first = false;
+  });
   timer_ = nh_.createWallTimer(ros::WallDuration(kTimerPeriod), &LaserScanDeskewNode::timerCallback, this);
   const std::string mode = params_.exact
                                ? "exact per-beam lookups"
@@ -112,6 +178,7 @@ LaserScanDeskewNode::LaserScanDeskewNode(ros::NodeHandle nh, ros::NodeHandle pri
 }
 
 LaserScanDeskewNode::~LaserScanDeskewNode() {
+  reconfigure_.reset();  // no reconfigure callback while members go away
   {
     // No connect callback may touch a publisher or subscribe while members go away.
     std::lock_guard<std::mutex> lock(connect_mutex_);
@@ -123,6 +190,11 @@ LaserScanDeskewNode::~LaserScanDeskewNode() {
   scan_subscriber_.shutdown();
   tf_subscriber_.shutdown();
   tf_static_subscriber_.shutdown();
+}
+
+ros_adapter::DeskewParams LaserScanDeskewNode::params() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return params_;
 }
 
 const void* LaserScanDeskewNode::lastPublishedCloud() {
@@ -160,9 +232,9 @@ void LaserScanDeskewNode::connectCallback() {
     return;
   const bool wanted = scan_publisher_.getNumSubscribers() + cloud_publisher_.getNumSubscribers() > 0;
   if (wanted && !scan_subscriber_) {
-    scan_subscriber_ = nh_.subscribe<sensor_msgs::LaserScan>("scan", params_.input_queue_size,
-                                                             &LaserScanDeskewNode::scanCallback, this,
-                                                             ros::TransportHints().tcpNoDelay());
+    scan_subscriber_ =
+        nh_.subscribe<sensor_msgs::LaserScan>("scan", input_queue_size_, &LaserScanDeskewNode::scanCallback,
+                                              this, ros::TransportHints().tcpNoDelay());
   } else if (!wanted && scan_subscriber_) {
     scan_subscriber_.shutdown();
   }

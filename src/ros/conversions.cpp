@@ -49,6 +49,12 @@ std::string normalizedFrame(const std::string& frame_id) {
   return !frame_id.empty() && frame_id.front() == '/' ? frame_id.substr(1) : frame_id;
 }
 
+std::string formatNumber(double value) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%g", value);
+  return text;
+}
+
 std::string describePose(const mrpt::poses::CPose3D& pose) {
   char text[128];
   std::snprintf(text, sizeof text, "x %.3f y %.3f z %.3f m, yaw %.4f pitch %.4f roll %.4f rad", pose.x(),

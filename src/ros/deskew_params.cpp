@@ -17,38 +17,42 @@ namespace {
 constexpr double kNoBound = 0.0;
 
 // The one table of parameters: name, type, default, unit, min, max, min exclusive, choices, live only,
-// meaning. Bounds are inclusive unless min is exclusive; strings with choices take one of them.
+// reconfigurable (may change while the node runs: cfg/Deskew.cfg), meaning. Bounds are inclusive unless min
+// is exclusive; strings with choices take one of them.
 const ParamSpec kSpecs[] = {
-    {"fixed_frame", "string", "odom", "", kNoBound, kNoBound, false, "", false, "frame the base moves in"},
-    {"base_frame", "string", "base_link", "", kNoBound, kNoBound, false, "", false,
+    {"fixed_frame", "string", "odom", "", kNoBound, kNoBound, false, "", false, false,
+     "frame the base moves in"},
+    {"base_frame", "string", "base_link", "", kNoBound, kNoBound, false, "", false, false,
      "the robot base; the mount is base_frame -> scan frame"},
-    {"reference", "string", "start", "", kNoBound, kNoBound, false, "start|middle|end", false,
+    {"reference", "string", "start", "", kNoBound, kNoBound, false, "start|middle|end", false, true,
      "time every point is re-expressed at; outputs are stamped with it"},
-    {"stamp_at", "string", "start", "", kNoBound, kNoBound, false, "start|end", false,
+    {"stamp_at", "string", "start", "", kNoBound, kNoBound, false, "start|end", false, true,
      "which beam header.stamp refers to"},
-    {"scan_period", "double", "0.0", "s", 0.0, 60.0, false, "", false,
+    {"scan_period", "double", "0.0", "s", 0.0, 60.0, false, "", false, true,
      "revolution time when time_increment and scan_time are 0; 0 = none"},
-    {"max_sweep_duration", "double", "1.0", "s", 0.0, 60.0, true, "", false, "longer sweeps are malformed"},
-    {"knot_interval", "double", "0.005", "s", 1e-5, 1.0, false, "", false,
+    {"max_sweep_duration", "double", "1.0", "s", 0.0, 60.0, true, "", false, false,
+     "longer sweeps are malformed"},
+    {"knot_interval", "double", "0.005", "s", 1e-5, 1.0, false, "", false, false,
      "spacing of tf lookups across the sweep (plus tf's own sample times)"},
-    {"exact", "bool", "false", "", kNoBound, kNoBound, false, "", false,
+    {"exact", "bool", "false", "", kNoBound, kNoBound, false, "", false, false,
      "one tf lookup per beam (verification, benchmarks)"},
-    {"tf_timeout", "double", "0.2", "s", 0.0, 60.0, false, "", false,
+    {"tf_timeout", "double", "0.2", "s", 0.0, 60.0, false, "", false, true,
      "longest wait for tf to cover a sweep's last beam (offline: in record time)"},
-    {"on_tf_failure", "string", "drop", "", kNoBound, kNoBound, false, "drop|pass_through", false,
+    {"on_tf_failure", "string", "drop", "", kNoBound, kNoBound, false, "drop|pass_through", false, true,
      "what happens to a scan tf does not cover"},
-    {"max_tf_gap", "double", "0.5", "s", 0.0, 60.0, false, "", false,
+    {"max_tf_gap", "double", "0.5", "s", 0.0, 60.0, false, "", false, true,
      "refuse sweeps tf interpolates across a longer gap; 0 = never"},
-    {"max_extrapolation", "double", "0.0", "s", 0.0, 1.0, false, "", true,
+    {"max_extrapolation", "double", "0.0", "s", 0.0, 1.0, false, "", true, true,
      "after tf_timeout without tf, extrapolate at most this far instead of failing; 0 = never"},
-    {"queue_size", "int", "10", "scans", 1.0, 100000.0, false, "", false, "scans waiting for tf at most"},
-    {"input_queue_size", "int", "10", "scans", 1.0, 100000.0, false, "", true,
+    {"queue_size", "int", "10", "scans", 1.0, 100000.0, false, "", false, true,
+     "scans waiting for tf at most"},
+    {"input_queue_size", "int", "10", "scans", 1.0, 100000.0, false, "", true, false,
      "roscpp's queue of the input subscription (losses there count as lost upstream)"},
-    {"rebin_min_gap", "double", "0.05", "m", 0.0, 100.0, false, "", false,
+    {"rebin_min_gap", "double", "0.05", "m", 0.0, 100.0, false, "", false, true,
      "contour join distance, constant part"},
-    {"rebin_gap_factor", "double", "5.0", "", 0.0, 1000.0, false, "", false,
+    {"rebin_gap_factor", "double", "5.0", "", 0.0, 1000.0, false, "", false, true,
      "contour join distance per (range x angle increment)"},
-    {"diagnostics_period", "double", "1.0", "s", 0.0, 3600.0, true, "", true, "period of /diagnostics"},
+    {"diagnostics_period", "double", "1.0", "s", 0.0, 3600.0, true, "", true, true, "period of /diagnostics"},
 };
 
 const ParamSpec& specOf(const std::string& name) {
@@ -57,12 +61,6 @@ const ParamSpec& specOf(const std::string& name) {
       return spec;
   }
   throw std::logic_error("no parameter " + name);
-}
-
-std::string number(double value) {
-  char text[32];
-  std::snprintf(text, sizeof text, "%g", value);
-  return text;
 }
 
 void checkNumber(const std::string& name, double value) {
@@ -99,12 +97,22 @@ std::size_t editDistance(const std::string& a, const std::string& b) {
   return row[b.size()];
 }
 
+/// The names of the parameters whose `flag` is set.
+std::vector<std::string> namesWhere(bool ParamSpec::*flag) {
+  std::vector<std::string> names;
+  for (const ParamSpec& spec : kSpecs) {
+    if (spec.*flag)
+      names.push_back(spec.name);
+  }
+  return names;
+}
+
 }  // namespace
 
 std::string ParamSpec::bounds() const {
   const std::string kind = type;
   if (kind == "double" || kind == "int")
-    return std::string(min_exclusive ? "(" : "[") + number(min) + ", " + number(max) + "]";
+    return std::string(min_exclusive ? "(" : "[") + formatNumber(min) + ", " + formatNumber(max) + "]";
   std::string text = choices;
   for (std::size_t bar = text.find('|'); bar != std::string::npos; bar = text.find('|', bar))
     text.replace(bar, 1, ", ");
@@ -127,14 +135,12 @@ const std::vector<std::string>& DeskewParams::names() {
 }
 
 const std::vector<std::string>& DeskewParams::liveOnlyNames() {
-  static const std::vector<std::string> names = [] {
-    std::vector<std::string> live;
-    for (const ParamSpec& spec : kSpecs) {
-      if (spec.live_only)
-        live.push_back(spec.name);
-    }
-    return live;
-  }();
+  static const std::vector<std::string> names = namesWhere(&ParamSpec::live_only);
+  return names;
+}
+
+const std::vector<std::string>& DeskewParams::reconfigurableNames() {
+  static const std::vector<std::string> names = namesWhere(&ParamSpec::reconfigurable);
   return names;
 }
 
@@ -143,7 +149,11 @@ std::string toString(OnTfFailure value) {
 }
 
 DeskewParams DeskewParams::load(const ParamSource& source) {
-  DeskewParams params;
+  return load(source, DeskewParams());
+}
+
+DeskewParams DeskewParams::load(const ParamSource& source, const DeskewParams& base) {
+  DeskewParams params = base;
   std::string text;
   source.get("fixed_frame", params.fixed_frame);
   source.get("base_frame", params.base_frame);

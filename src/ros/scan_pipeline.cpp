@@ -94,6 +94,29 @@ ScanPipeline::ScanPipeline(const DeskewParams& params, Publish publish, Report r
           [this](TfEvent event, const std::string& text) { onTfEvent(event, text); }),
       processor_(params) {}
 
+void ScanPipeline::reconfigure(const DeskewParams& next) {
+  next.validate();
+  const auto fixed = [](bool same, const char* name) {
+    if (!same)
+      throw core::InvalidInput(name, "cannot change while running; restart with it set");
+  };
+  fixed(next.fixed_frame == params_.fixed_frame, "fixed_frame");
+  fixed(next.base_frame == params_.base_frame, "base_frame");
+  fixed(next.timing.max_sweep_duration == params_.timing.max_sweep_duration, "max_sweep_duration");
+  fixed(next.exact == params_.exact, "exact");  // before knot_interval, which exact sets to 0
+  fixed(next.deskew.knot_interval == params_.deskew.knot_interval, "knot_interval");
+  fixed(next.input_queue_size == params_.input_queue_size, "input_queue_size");
+  // A waiting scan's tf must stay in the cache for as long as it may wait.
+  const double longest = tf_.cacheTime() - next.timing.max_sweep_duration - 1.0;
+  if (next.tf_timeout > longest) {
+    throw core::InvalidInput("tf_timeout", "must be at most " + formatNumber(longest) +
+                                               " s while running (the tf cache holds " +
+                                               formatNumber(tf_.cacheTime()) + " s); restart with it set");
+  }
+  params_ = next;
+  processor_ = ScanProcessor(next);
+}
+
 void ScanPipeline::onTfEvent(TfEvent event, const std::string& text) {
   switch (event) {
     case TfEvent::kStaticIgnored:

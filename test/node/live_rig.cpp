@@ -123,17 +123,18 @@ bool LiveRig::waitFor(const std::function<bool()>& done, double timeout) {
 }
 
 bool LiveRig::waitForOutputs(const ros::Time& stamp, double timeout, sensor_msgs::LaserScan::ConstPtr& scan,
-                             sensor_msgs::PointCloud2::ConstPtr& cloud) {
+                             sensor_msgs::PointCloud2::ConstPtr& cloud, double tolerance) {
   scan.reset();
   cloud.reset();
+  const auto near = [&](const ros::Time& other) { return std::abs((other - stamp).toSec()) <= tolerance; };
   waitFor(
       [&] {
         for (const auto& s : scans_) {
-          if (s->header.stamp == stamp)
+          if (near(s->header.stamp))
             scan = s;
         }
         for (const auto& c : clouds_) {
-          if (c->header.stamp == stamp)
+          if (near(c->header.stamp))
             cloud = c;
         }
         return scan && cloud;

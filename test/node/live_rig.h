@@ -58,9 +58,9 @@ class LiveRig {
   void spinFor(double seconds) {
     waitFor([] { return false; }, seconds);
   }
-  /// The outputs stamped `stamp`, when both arrived within `timeout` [s].
+  /// The outputs stamped `stamp` (within `tolerance` [s]), when both arrived within `timeout` [s].
   bool waitForOutputs(const ros::Time& stamp, double timeout, sensor_msgs::LaserScan::ConstPtr& scan,
-                      sensor_msgs::PointCloud2::ConstPtr& cloud);
+                      sensor_msgs::PointCloud2::ConstPtr& cloud, double tolerance = 0.0);
   /// How many corrected scans arrived stamped within [from, to].
   std::size_t outputCount(const ros::Time& from, const ros::Time& to) const;
   /// The newest value of a diagnostics key of the deskew status (empty when none arrived yet).

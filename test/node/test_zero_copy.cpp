@@ -2,7 +2,9 @@
 // lidar_deskew/LaserScanDeskew plugin loaded through pluginlib, and a same-type subscriber here receives
 // the very cloud object the nodelet published (pointer identity), not a copy.
 #include <gtest/gtest.h>
+
 #include <nodelet/loader.h>
+#include <set>
 
 #include "lidar_deskew/node/laser_scan_deskew_node.h"
 #include "live_rig.h"
@@ -63,17 +65,23 @@ TEST(Parameters, BadValueIsNamedAndNothingStartsHalfConfigured) {
   const auto advertised = [] {
     ros::master::V_TopicInfo topics;
     ros::master::getTopics(topics);
-    int count = 0;
-    for (const auto& topic : topics)
-      count += topic.name.rfind("/bad_params/", 0) == 0;
-    return count;
+    std::set<std::string> names;
+    for (const auto& topic : topics) {
+      if (topic.name.rfind("/bad_params/", 0) == 0)
+        names.insert(topic.name);
+    }
+    return names;
   };
-  EXPECT_EQ(advertised(), 0);
-  // The check sees a node that did start: a good value advertises both outputs.
+  EXPECT_EQ(advertised(), std::set<std::string>{});
+  // The check sees a node that did start: a good value advertises both outputs, and the
+  // dynamic_reconfigure server its two topics.
   private_nh.deleteParam("");
   private_nh.setParam("tf_timeout", 0.5);
   node::LaserScanDeskewNode node(nh, private_nh, "bad_params");
-  EXPECT_EQ(advertised(), 2);
+  EXPECT_EQ(advertised(),
+            (std::set<std::string>{"/bad_params/scan_deskewed", "/bad_params/scan_deskewed_points",
+                                   "/bad_params/deskew/parameter_descriptions",
+                                   "/bad_params/deskew/parameter_updates"}));
 }
 
 }  // namespace

@@ -49,10 +49,10 @@ TEST(Params, ConfigFileListsEveryParameterWithItsDefault) {
 TEST(Params, ReadmeTableMatchesTheCode) {
   const std::string readme = readFile(std::string(LIDAR_DESKEW_SOURCE_DIR) + "/README.md");
   struct Row {
-    std::string default_value, unit, bounds;
+    std::string default_value, unit, bounds, live;
   };
   std::map<std::string, Row> rows;
-  // A row: | `name` | default | unit | allowed | meaning |, cells trimmed of spaces and backquotes.
+  // A row: | `name` | default | unit | allowed | live | meaning |, cells trimmed of spaces and backquotes.
   std::istringstream lines(readme);
   for (std::string text; std::getline(lines, text);) {
     if (text.rfind("| `", 0) != 0)
@@ -63,8 +63,8 @@ TEST(Params, ReadmeTableMatchesTheCode) {
       const auto first = cell.find_first_not_of(" `"), last = cell.find_last_not_of(" `");
       cells.push_back(first == std::string::npos ? "" : cell.substr(first, last - first + 1));
     }
-    if (cells.size() >= 5)
-      rows[cells[0]] = {cells[1], cells[2], cells[3]};
+    if (cells.size() >= 6)
+      rows[cells[0]] = {cells[1], cells[2], cells[3], cells[4]};
   }
   for (const ParamSpec& spec : DeskewParams::specs()) {
     ASSERT_TRUE(rows.count(spec.name)) << spec.name << " has no row in README.md's parameter table";
@@ -76,6 +76,7 @@ TEST(Params, ReadmeTableMatchesTheCode) {
     }
     EXPECT_EQ(rows[spec.name].unit, spec.unit) << spec.name;
     EXPECT_EQ(rows[spec.name].bounds, spec.bounds()) << spec.name;
+    EXPECT_EQ(rows[spec.name].live, spec.reconfigurable ? "yes" : "") << spec.name;
   }
 }
 

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include "lidar_deskew/ros/scan_pipeline.h"
+#include "lidar_deskew/ros/text_params.h"
 #include "lidar_deskew/sim/sim.h"
 #include "support/tf_tree.h"
 
@@ -234,6 +235,59 @@ TEST(ScanPipeline, ClockFollowingTfBackIsTheSameJump) {
   run.pipeline.expire(0.14 + run.pipeline.params().tf_timeout + 0.01);  // now it has waited too long
   EXPECT_EQ(run.pipeline.waiting(), 0u);
   EXPECT_EQ(run.pipeline.counters().dropped_tf, 1u);
+}
+
+// While running, the parameters marked reconfigurable change and take effect; any other is refused,
+// named, and nothing changes.
+TEST(ScanPipeline, ReconfigureTakesTheLiveParametersAndRefusesTheRest) {
+  for (const ros_adapter::ParamSpec& spec : ros_adapter::DeskewParams::specs()) {
+    SCOPED_TRACE(spec.name);
+    PipelineRun run{Drive()};
+    const std::string type = spec.type, choices = spec.choices;
+    std::string other;  // a valid value other than the default
+    if (type == "bool") {
+      other = "true";
+    } else if (type == "string") {
+      other = choices.empty() ? "elsewhere" : choices.substr(choices.rfind('|') + 1);
+    } else {
+      other = type == "int" ? std::to_string(static_cast<int>(spec.min) + 1)
+                            : std::to_string(spec.min + 1e-3 * (spec.max - spec.min));
+    }
+    const ros_adapter::DeskewParams next = ros_adapter::DeskewParams::load(
+        ros_adapter::TextParams(std::map<std::string, std::string>{{spec.name, other}}),
+        run.pipeline.params());
+    if (spec.reconfigurable) {
+      EXPECT_NO_THROW(run.pipeline.reconfigure(next));
+    } else {
+      try {
+        run.pipeline.reconfigure(next);
+        ADD_FAILURE() << "taken while running";
+      } catch (const core::InvalidInput& error) {
+        EXPECT_NE(std::string(error.what()).find(spec.name), std::string::npos) << error.what();
+      }
+    }
+  }
+}
+
+// A reconfigured on_tf_failure and tf_timeout apply to the scans waiting; a tf_timeout longer than the
+// tf cache holds is refused.
+TEST(ScanPipeline, ReconfiguredFailurePolicyApplies) {
+  PipelineRun run{Drive()};
+  run.statics(0.0);
+  run.tfUntil(0.2);
+  run.pipeline.addScan(run.drive.scanAt(0.3), 0.3);  // its tf never comes
+  ros_adapter::DeskewParams next = run.pipeline.params();
+  next.on_tf_failure = ros_adapter::OnTfFailure::kPassThrough;
+  next.tf_timeout = 0.5;
+  run.pipeline.reconfigure(next);
+  run.pipeline.expire(0.3 + 0.3);  // past the old timeout, within the new one
+  EXPECT_EQ(run.pipeline.waiting(), 1u);
+  run.pipeline.expire(0.3 + 0.6);
+  EXPECT_EQ(run.pipeline.counters().passed_through, 1u);
+  EXPECT_EQ(run.results.size(), 1u);
+  next.tf_timeout = 9.5;  // the cache holds 10 s, less 1 s of sweep and 1 s of margin
+  EXPECT_THROW(run.pipeline.reconfigure(next), core::InvalidInput);
+  EXPECT_DOUBLE_EQ(run.pipeline.params().tf_timeout, 0.5);
 }
 
 // Scans lost upstream show as gaps in header.seq; an unset seq (always 0) or a restart counts nothing.

@@ -24,7 +24,8 @@ namespace lidar_deskew::node {
 /// (sensor_msgs/LaserScan on the input's grid) and `scan_deskewed_points` (PCL cloud of PointXYZITI),
 /// both in the scan's frame, stamped at the reference time. A scan waits, without blocking any
 /// callback, until tf covers its last beam, and is processed from the tf callback that brings it.
-/// Thread-safe: callbacks may come from several threads.
+/// The parameters marked reconfigurable (DeskewParams::reconfigurableNames) may change while it runs,
+/// through dynamic_reconfigure (cfg/Deskew.cfg). Thread-safe: callbacks may come from several threads.
 class LaserScanDeskewNode {
  public:
   /// The pipeline's counters and the node's timing.
@@ -44,7 +45,8 @@ class LaserScanDeskewNode {
   LaserScanDeskewNode(const LaserScanDeskewNode&) = delete;
   LaserScanDeskewNode& operator=(const LaserScanDeskewNode&) = delete;
 
-  const ros_adapter::DeskewParams& params() const { return params_; }
+  /// The parameters in force (dynamic_reconfigure changes some while running).
+  ros_adapter::DeskewParams params() const;
   Counters counters() const;
 
   /// [s] 99th percentile of the latency from the callback in which tf covered a scan's last beam (or
@@ -59,6 +61,7 @@ class LaserScanDeskewNode {
   void scanCallback(const sensor_msgs::LaserScan::ConstPtr& message);
   void tfCallback(const tf2_msgs::TFMessage::ConstPtr& message, bool is_static);
   void timerCallback(const ros::WallTimerEvent& event);
+  struct Reconfigure;  // the dynamic_reconfigure server, of the generated lidar_deskew::DeskewConfig
 
   // All below run with mutex_ held.
   void publish(const ros_adapter::PipelineResult& result);
@@ -70,7 +73,8 @@ class LaserScanDeskewNode {
   ros::NodeHandle nh_;
   ros::NodeHandle private_nh_;
   std::string name_;
-  ros_adapter::DeskewParams params_;
+  ros_adapter::DeskewParams params_;  // guarded by mutex_ (reconfigured while running)
+  const int input_queue_size_;        // params_.input_queue_size, which cannot change
 
   mutable std::mutex mutex_;
   std::mutex connect_mutex_;
@@ -93,6 +97,7 @@ class LaserScanDeskewNode {
   ros::Subscriber tf_static_subscriber_;
   ros::WallTimer timer_;
   std::unique_ptr<diagnostic_updater::Updater> diagnostics_;
+  std::unique_ptr<Reconfigure> reconfigure_;
 };
 
 }  // namespace lidar_deskew::node

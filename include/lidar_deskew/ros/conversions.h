@@ -34,6 +34,9 @@ geometry_msgs::Transform toTransform(const mrpt::poses::CPose3D& pose);
 /// A frame id as tf2 looks it up: without a leading '/' (tf2_ros's MessageFilter does the same).
 std::string normalizedFrame(const std::string& frame_id);
 
+/// A number for messages, as short as it is exact to 6 digits ("0.2", "8", "1e-05").
+std::string formatNumber(double value);
+
 /// "x 0.100 y 0.000 z 0.200 m, yaw 0.0000 pitch 0.0000 roll 0.0000 rad": a pose for log lines.
 std::string describePose(const mrpt::poses::CPose3D& pose);
 

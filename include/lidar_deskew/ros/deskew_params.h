@@ -28,6 +28,7 @@ struct ParamSpec {
   bool min_exclusive;
   const char* choices;  ///< strings with fixed values, e.g. "start|middle|end"; "" for free text
   bool live_only;       ///< means nothing offline: deskew_bag refuses it
+  bool reconfigurable;  ///< may change while the node runs (dynamic_reconfigure, cfg/Deskew.cfg)
   const char* meaning;
 
   /// The allowed values as the docs' table shows them: "[0, 60]", "(0, 3600]", "start, end", "".
@@ -52,12 +53,16 @@ struct DeskewParams {
   /// Reads every parameter (defaults above for the absent ones) and validates. Throws
   /// core::InvalidInput naming the parameter for a bad value or type.
   static DeskewParams load(const ParamSource& source);
+  /// The same, parameters absent from `source` keeping their value in `base`.
+  static DeskewParams load(const ParamSource& source, const DeskewParams& base);
   static DeskewParams load(const ros::NodeHandle& private_nh) { return load(NodeHandleParams(private_nh)); }
   /// Every parameter, in the order of config/deskew.yaml.
   static const std::vector<ParamSpec>& specs();
   /// The names load() reads, and those of them that only the live node uses.
   static const std::vector<std::string>& names();
   static const std::vector<std::string>& liveOnlyNames();
+  /// The names of the parameters that may change while the node runs (dynamic_reconfigure).
+  static const std::vector<std::string>& reconfigurableNames();
   /// Throws core::InvalidInput naming the first parameter outside its bounds (specs()).
   void validate() const;
   /// Of `given` names, those that are no parameter, each with the closest parameter name when one is

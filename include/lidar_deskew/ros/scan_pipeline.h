@@ -96,6 +96,12 @@ class ScanPipeline {
   /// Fails every waiting scan (nothing more will come: the end of a bag).
   void flush();
 
+  /// Takes the parameters that may change while running (DeskewParams::reconfigurableNames) from
+  /// `next`: they apply to scans that arrive (stamp_at, scan_period) or are served (the rest) from now
+  /// on. The others must equal the running ones, and tf_timeout must fit the tf cache. Throws
+  /// core::InvalidInput naming the parameter; nothing changes then.
+  void reconfigure(const DeskewParams& next);
+
   /// Replaces the receiver of the outputs.
   void setPublish(Publish publish) { publish_ = std::move(publish); }
 

@@ -72,6 +72,8 @@ class TfFeed {
   /// For readers that take a mutable buffer (laser_geometry); add transforms through add() only.
   tf2::BufferCore& buffer() { return *buffer_; }
   const std::string& fixedFrame() const { return fixed_frame_; }
+  /// [s] How much dynamic tf history is kept.
+  double cacheTime() const { return cache_time_.toSec(); }
   const std::string& baseFrame() const { return base_frame_; }
 
  private:
