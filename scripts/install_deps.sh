@@ -18,7 +18,10 @@ PACKAGES=(
   # geometry: Eigen, MRPT 2.5 poses and its ROS 1 bridge, PCL with pcl_ros, laser_geometry (reference)
   libeigen3-dev libmrpt-poses-dev libmrpt-ros1bridge-dev libpcl-ros-dev liblaser-geometry-dev
   # Python tools (figures, metrics): Debian's, never pip
-  python3-numpy python3-matplotlib
+  python3-numpy python3-matplotlib python3-yaml
+  # rviz (demo.launch) and its test (rviz_neato): rviz and its headers (the test's status panel), a
+  # virtual X screen with Mesa's software OpenGL, ImageMagick for the screenshot
+  rviz librviz-dev xvfb libgl1-mesa-dri imagemagick
 )
 
 missing=()

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The install tree (after catkin_make install) holds what users need: libraries, headers, executables,
-# nodelets.xml, launch files and the package manifest.
+# nodelets.xml, launch files, rviz configs, the demo's bag and the package manifest.
 set -euo pipefail
 prefix=${1:?install prefix}
 status=0
@@ -29,8 +29,12 @@ for path in \
   share/lidar_deskew/nodelets.xml \
   share/lidar_deskew/launch/core_demo.launch \
   share/lidar_deskew/launch/deskew.launch \
+  share/lidar_deskew/launch/demo.launch \
   share/lidar_deskew/config/deskew.yaml \
   share/lidar_deskew/rviz/deskew.rviz \
+  share/lidar_deskew/rviz/deskew_cloud.rviz \
+  share/lidar_deskew/data/neato_xv11/test_drive.bag \
+  share/lidar_deskew/data/neato_xv11/NOTICE \
   lib/liblidar_deskew_nodelets.so \
   lib/lidar_deskew/deskew_node \
   lib/lidar_deskew/deskew_bag \
