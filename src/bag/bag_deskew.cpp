@@ -145,7 +145,7 @@ BagDeskewSummary deskewBag(const BagDeskewOptions& options) {
         // The scan as read (read once), with its original connection header.
         output.write(options.replace ? topic + "_raw" : topic, message.getTime(), scan,
                      message.getConnectionHeader());
-        stream->second->addScan(scan, now, message.getTime().toNSec());
+        stream->second->add(scan, now, message.getTime().toNSec());
       }
       for (auto& [name, pipeline] : streams)
         pipeline->expire(now);  // waiting measured in record time, as live on the wall clock

@@ -245,7 +245,7 @@ void LaserScanDeskewNode::scanCallback(const sensor_msgs::LaserScan::ConstPtr& m
   std::lock_guard<std::mutex> lock(mutex_);
   trigger_ = arrival;
   try {
-    pipeline_.addScan(message, waitClock(arrival));
+    pipeline_.add(message, waitClock(arrival));
   } catch (const std::exception& error) {  // never let an exception reach the manager
     ROS_ERROR_THROTTLE(1.0, "%s: error processing scans: %s", name_.c_str(), error.what());
   }

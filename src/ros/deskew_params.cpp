@@ -32,6 +32,12 @@ const ParamSpec kSpecs[] = {
      "revolution time when time_increment and scan_time are 0; 0 = none"},
     {"max_sweep_duration", "double", "1.0", "s", 0.0, 60.0, true, "", false, false,
      "longer sweeps are malformed"},
+    {"time_field", "string", "", "", kNoBound, kNoBound, false, "", false, false,
+     "clouds: the per-point time field; empty = t, time, timestamp, time_stamp, offset_time, stamps"},
+    {"time_unit", "string", "auto", "", kNoBound, kNoBound, false, "auto|s|ms|us|ns", false, false,
+     "clouds: unit of the time field; auto = decided from its values"},
+    {"time_base", "string", "auto", "", kNoBound, kNoBound, false, "auto|header|absolute", false, false,
+     "clouds: time values are offsets from header.stamp or absolute; auto = decided from its values"},
     {"knot_interval", "double", "0.005", "s", 1e-5, 1.0, false, "", false, false,
      "spacing of tf lookups across the sweep (plus tf's own sample times)"},
     {"exact", "bool", "false", "", kNoBound, kNoBound, false, "", false, false,
@@ -169,6 +175,15 @@ DeskewParams DeskewParams::load(const ParamSource& source, const DeskewParams& b
   }
   source.get("scan_period", params.timing.scan_period);
   source.get("max_sweep_duration", params.timing.max_sweep_duration);
+  source.get("time_field", params.cloud_time.field);
+  if (source.get("time_unit", text)) {
+    checkChoice("time_unit", text);
+    params.cloud_time.unit = text;
+  }
+  if (source.get("time_base", text)) {
+    checkChoice("time_base", text);
+    params.cloud_time.base = text;
+  }
   source.get("knot_interval", params.deskew.knot_interval);
   source.get("exact", params.exact);
   if (params.exact)

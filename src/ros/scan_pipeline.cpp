@@ -85,7 +85,9 @@ std::string toString(PipelineEvent event) {
   return "event";
 }
 
-ScanPipeline::ScanPipeline(const DeskewParams& params, Publish publish, Report report, double tf_cache_time)
+template <class Processor>
+SweepPipeline<Processor>::SweepPipeline(const DeskewParams& params, Publish publish, Report report,
+                                        double tf_cache_time)
     : params_((params.validate(), params)),
       publish_(std::move(publish)),
       report_(std::move(report)),
@@ -94,7 +96,8 @@ ScanPipeline::ScanPipeline(const DeskewParams& params, Publish publish, Report r
           [this](TfEvent event, const std::string& text) { onTfEvent(event, text); }),
       processor_(params) {}
 
-void ScanPipeline::reconfigure(const DeskewParams& next) {
+template <class Processor>
+void SweepPipeline<Processor>::reconfigure(const DeskewParams& next) {
   next.validate();
   const auto fixed = [](bool same, const char* name) {
     if (!same)
@@ -106,6 +109,9 @@ void ScanPipeline::reconfigure(const DeskewParams& next) {
   fixed(next.exact == params_.exact, "exact");  // before knot_interval, which exact sets to 0
   fixed(next.deskew.knot_interval == params_.deskew.knot_interval, "knot_interval");
   fixed(next.input_queue_size == params_.input_queue_size, "input_queue_size");
+  fixed(next.cloud_time.field == params_.cloud_time.field, "time_field");
+  fixed(next.cloud_time.unit == params_.cloud_time.unit, "time_unit");
+  fixed(next.cloud_time.base == params_.cloud_time.base, "time_base");
   // A waiting scan's tf must stay in the cache for as long as it may wait.
   const double longest = tf_.cacheTime() - next.timing.max_sweep_duration - 1.0;
   if (next.tf_timeout > longest) {
@@ -114,10 +120,11 @@ void ScanPipeline::reconfigure(const DeskewParams& next) {
                                                formatNumber(tf_.cacheTime()) + " s); restart with it set");
   }
   params_ = next;
-  processor_ = ScanProcessor(next);
+  processor_ = Processor(next);
 }
 
-void ScanPipeline::onTfEvent(TfEvent event, const std::string& text) {
+template <class Processor>
+void SweepPipeline<Processor>::onTfEvent(TfEvent event, const std::string& text) {
   switch (event) {
     case TfEvent::kStaticIgnored:
       ++counters_.statics_ignored;
@@ -142,7 +149,8 @@ void ScanPipeline::onTfEvent(TfEvent event, const std::string& text) {
   }
 }
 
-void ScanPipeline::observeClock(double now) {
+template <class Processor>
+void SweepPipeline<Processor>::observeClock(double now) {
   if (!clock_ || now + kClockJump >= *clock_) {
     clock_ = std::max(now, clock_.value_or(now));
     return;
@@ -165,7 +173,8 @@ void ScanPipeline::observeClock(double now) {
   failWaiting("the clock went back");
 }
 
-void ScanPipeline::failWaiting(const std::string& reason) {
+template <class Processor>
+void SweepPipeline<Processor>::failWaiting(const std::string& reason) {
   std::deque<Pending> waiting;
   waiting.swap(pending_);
   for (const Pending& pending : waiting) {
@@ -179,15 +188,17 @@ void ScanPipeline::failWaiting(const std::string& reason) {
   }
 }
 
-void ScanPipeline::addTransforms(const std::vector<geometry_msgs::TransformStamped>& transforms,
-                                 bool is_static, double now) {
+template <class Processor>
+void SweepPipeline<Processor>::addTransforms(const std::vector<geometry_msgs::TransformStamped>& transforms,
+                                             bool is_static, double now) {
   observeClock(now);
   for (const geometry_msgs::TransformStamped& transform : transforms)
     tf_.add(transform, is_static);
   serveReady(now);
 }
 
-void ScanPipeline::addScan(const sensor_msgs::LaserScan::ConstPtr& message, double now, std::uint64_t id) {
+template <class Processor>
+void SweepPipeline<Processor>::add(const typename Message::ConstPtr& message, double now, std::uint64_t id) {
   observeClock(now);
   ++counters_.received;
   // A gap in header.seq is scans lost upstream; a smaller seq is a restarted driver or a looped bag,
@@ -209,15 +220,9 @@ void ScanPipeline::addScan(const sensor_msgs::LaserScan::ConstPtr& message, doub
     return;
   }
   pending.frame = normalizedFrame(message->header.frame_id);
-  if (pending.prepared.timing.source != core::TimingSource::kTimeIncrement &&
-      counters_.time_fallbacks++ == 0) {
-    report_(
-        PipelineEvent::kTimeFallback,
-        std::string("scans have time_increment = 0; beam times come from ") +
-            (pending.prepared.timing.source == core::TimingSource::kScanTime ? "scan_time"
-                                                                             : "the scan_period parameter") +
-            " (counted)");
-  }
+  const char* fallback = pending.prepared.timingFallback();
+  if (fallback != nullptr && counters_.time_fallbacks++ == 0)
+    report_(PipelineEvent::kTimeFallback, std::string(fallback) + " (counted)");
   pending_.push_back(std::move(pending));
   while (static_cast<int>(pending_.size()) > params_.queue_size) {
     ++counters_.dropped_queue;
@@ -228,17 +233,18 @@ void ScanPipeline::addScan(const sensor_msgs::LaserScan::ConstPtr& message, doub
   serveReady(now);
 }
 
-bool ScanPipeline::ready(const Pending& pending) const {
+template <class Processor>
+bool SweepPipeline<Processor>::ready(const Pending& pending) const {
   // The mount may arrive after the motion (another connection): wait for both.
-  return tf_.mountKnown(pending.frame) &&
-         tf_.covers(pending.prepared.timing.earliestBeamTime(), pending.prepared.timing.latestBeamTime());
+  return tf_.mountKnown(pending.frame) && tf_.covers(pending.prepared.earliest(), pending.prepared.latest());
 }
 
-bool ScanPipeline::extrapolatable(const Pending& pending) const {
+template <class Processor>
+bool SweepPipeline<Processor>::extrapolatable(const Pending& pending) const {
   if (params_.max_extrapolation <= 0.0 || !tf_.mountKnown(pending.frame))
     return false;
-  const core::TimeNs first = pending.prepared.timing.earliestBeamTime();
-  const core::TimeNs last = pending.prepared.timing.latestBeamTime();
+  const core::TimeNs first = pending.prepared.earliest();
+  const core::TimeNs last = pending.prepared.latest();
   if (!tf_.covers(first, first))
     return false;
   // tf of the chain ends inside the sweep, less than max_extrapolation before its last beam.
@@ -246,7 +252,8 @@ bool ScanPipeline::extrapolatable(const Pending& pending) const {
   return newest >= first && newest + core::secondsToNs(params_.max_extrapolation) >= last;
 }
 
-void ScanPipeline::serveReady(double now) {
+template <class Processor>
+void SweepPipeline<Processor>::serveReady(double now) {
   observeClock(now);
   while (!pending_.empty()) {
     if (!ready(pending_.front()))
@@ -257,7 +264,8 @@ void ScanPipeline::serveReady(double now) {
   }
 }
 
-void ScanPipeline::expire(double now) {
+template <class Processor>
+void SweepPipeline<Processor>::expire(double now) {
   serveReady(now);
   while (!pending_.empty() && now - pending_.front().arrival > params_.tf_timeout) {
     const Pending expired = std::move(pending_.front());
@@ -276,11 +284,13 @@ void ScanPipeline::expire(double now) {
   }
 }
 
-void ScanPipeline::flush() {
+template <class Processor>
+void SweepPipeline<Processor>::flush() {
   failWaiting("tf does not cover the sweep");
 }
 
-void ScanPipeline::correct(const Pending& pending, bool extrapolate, double now) {
+template <class Processor>
+void SweepPipeline<Processor>::correct(const Pending& pending, bool extrapolate, double now) {
   const auto start = std::chrono::steady_clock::now();
   std::string error;
   const std::optional<mrpt::poses::CPose3D> mount = tf_.mount(pending.frame, error);
@@ -290,7 +300,7 @@ void ScanPipeline::correct(const Pending& pending, bool extrapolate, double now)
                                               pending.frame + " for the laser mount: " + error);
     return;
   }
-  PipelineResult result;
+  Result result;
   try {
     if (extrapolate) {
       std::vector<core::TimeNs> samples;
@@ -320,7 +330,8 @@ void ScanPipeline::correct(const Pending& pending, bool extrapolate, double now)
   publish_(result);
 }
 
-void ScanPipeline::fail(const Pending& pending, const std::string& reason) {
+template <class Processor>
+void SweepPipeline<Processor>::fail(const Pending& pending, const std::string& reason) {
   const std::string stamp = std::to_string(pending.prepared.message->header.stamp.toSec());
   if (params_.on_tf_failure == OnTfFailure::kDrop) {
     ++counters_.dropped_tf;
@@ -329,10 +340,13 @@ void ScanPipeline::fail(const Pending& pending, const std::string& reason) {
   }
   ++counters_.passed_through;
   report_(PipelineEvent::kTfFailure, "passing scan at " + stamp + " through uncorrected: " + reason);
-  PipelineResult result;
+  Result result;
   result.outputs = processor_.passThrough(pending.prepared);
   result.id = pending.id;
   publish_(result);
 }
+
+template class SweepPipeline<ScanProcessor>;
+template class SweepPipeline<CloudProcessor>;
 
 }  // namespace lidar_deskew::ros_adapter

@@ -48,6 +48,28 @@ boost::shared_ptr<DeskewedCloud> toCloud(const core::DeskewedScan& corrected, co
 
 }  // namespace
 
+const char* PreparedScan::timingFallback() const {
+  switch (timing.source) {
+    case core::TimingSource::kTimeIncrement:
+      return nullptr;
+    case core::TimingSource::kScanTime:
+      return "scans have time_increment = 0; beam times come from scan_time";
+    default:
+      return "scans have time_increment = 0; beam times come from the scan_period parameter";
+  }
+}
+
+void checkTfGaps(double max_tf_gap, const core::MotionSource& motion, core::TimeNs first, core::TimeNs last) {
+  if (max_tf_gap <= 0.0)
+    return;
+  const core::TimeNs gap = motion.longestGap(first, last);
+  if (gap > core::secondsToNs(max_tf_gap)) {
+    throw TfGapTooLong(first, "tf has a gap of " + std::to_string(gap * 1e-9) +
+                                  " s within the sweep (more than max_tf_gap " + std::to_string(max_tf_gap) +
+                                  " s)");
+  }
+}
+
 ScanProcessor::ScanProcessor(const DeskewParams& params)
     : params_(params), deskewer_(params.deskew), rebinner_(params.rebin) {}
 
@@ -69,15 +91,8 @@ PreparedScan ScanProcessor::prepare(const sensor_msgs::LaserScan::ConstPtr& mess
 
 DeskewedOutputs ScanProcessor::correct(const PreparedScan& prepared, const mrpt::poses::CPose3D& mount,
                                        const core::MotionSource& motion) {
-  if (params_.max_tf_gap > 0.0) {
-    const core::TimeNs first = prepared.timing.earliestBeamTime();
-    const core::TimeNs gap = motion.longestGap(first, prepared.timing.latestBeamTime());
-    if (gap > core::secondsToNs(params_.max_tf_gap)) {
-      throw TfGapTooLong(first, "tf has a gap of " + std::to_string(gap * 1e-9) +
-                                    " s within the sweep (more than max_tf_gap " +
-                                    std::to_string(params_.max_tf_gap) + " s)");
-    }
-  }
+  checkTfGaps(params_.max_tf_gap, motion, prepared.timing.earliestBeamTime(),
+              prepared.timing.latestBeamTime());
   deskewer_.deskew(prepared.scan, prepared.timing, mount, motion, corrected_);
   const core::PlanarScan& planar = prepared.scan;
   rebinner_.rebin(corrected_, {planar.angle_min, planar.angle_increment, planar.ranges.size()},

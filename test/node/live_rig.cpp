@@ -201,8 +201,4 @@ std::vector<double> rawDistances(const LiveRig& rig, const sim::SimulatedScan& i
   return distances;
 }
 
-double rms(const std::vector<double>& values) {
-  return sim::errorStats(values).rms;
-}
-
 }  // namespace lidar_deskew::test

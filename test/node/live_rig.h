@@ -100,6 +100,5 @@ std::vector<double> scanDistances(const LiveRig& rig, const sensor_msgs::LaserSc
 /// Distances [m] of the raw scan's beam endpoints to the true walls, drawn from the laser's true pose
 /// at the scan's start `start` [s] as if the robot stood still (what the correction removes).
 std::vector<double> rawDistances(const LiveRig& rig, const sim::SimulatedScan& input, double start);
-double rms(const std::vector<double>& values);
 
 }  // namespace lidar_deskew::test

@@ -29,7 +29,7 @@ TEST(Params, ConfigFileListsEveryParameterWithItsDefault) {
   for (std::string text; std::getline(lines, text);) {
     std::smatch match;
     if (std::regex_search(text, match, line))
-      values[match[1]] = match[2];
+      values[match[1]] = match[2] == "\"\"" ? "" : match[2].str();  // "" is the empty string
   }
   EXPECT_EQ(values.size(), DeskewParams::specs().size());
   for (const ParamSpec& spec : DeskewParams::specs()) {

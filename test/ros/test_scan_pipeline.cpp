@@ -39,7 +39,7 @@ struct PipelineRun {
   }
   /// One scan starting at t, then tf up to its end: returns its truth distances (empty when no output).
   void scan(double t) {
-    pipeline.addScan(drive.scanAt(t), t + 1.0 / drive.model.rate);
+    pipeline.add(drive.scanAt(t), t + 1.0 / drive.model.rate);
     tfUntil(t + 1.0 / drive.model.rate + kTfPeriod);
   }
   /// Distances of every corrected point handed out so far to the true walls [m].
@@ -63,10 +63,6 @@ struct PipelineRun {
   std::vector<std::pair<PipelineEvent, std::string>> events;
   ScanPipeline pipeline;
 };
-
-double rms(const std::vector<double>& values) {
-  return sim::errorStats(values).rms;
-}
 
 // Trees as robots have them: the same accuracy whatever links stand between the fixed frame and the
 // laser (statics before the motion, as a latched /tf_static arrives).
@@ -149,7 +145,7 @@ TEST(ScanPipeline, ScansWaitOnTheOwnersClockThenFail) {
     PipelineRun run(Drive(), params);
     run.statics(0.0);
     run.tfUntil(0.10);
-    run.pipeline.addScan(run.drive.scanAt(0.1), 0.125);  // tf covers only its first beam
+    run.pipeline.add(run.drive.scanAt(0.1), 0.125);  // tf covers only its first beam
     run.pipeline.expire(0.3);
     EXPECT_EQ(run.pipeline.waiting(), 1u);  // 0.175 s waited: still within tf_timeout
     run.pipeline.expire(0.33);
@@ -160,7 +156,7 @@ TEST(ScanPipeline, ScansWaitOnTheOwnersClockThenFail) {
     EXPECT_EQ(run.results.size(), drop ? 0u : 1u);
     // Late tf that comes within tf_timeout is waited for: the next scan is corrected when it comes,
     // 0.15 s after the scan.
-    run.pipeline.addScan(run.drive.scanAt(0.2), 0.4);
+    run.pipeline.add(run.drive.scanAt(0.2), 0.4);
     run.pipeline.expire(0.5);
     EXPECT_EQ(run.pipeline.waiting(), 1u);
     run.pipeline.addTransforms({run.drive.motionAt(0.24)}, false, 0.55);
@@ -169,7 +165,7 @@ TEST(ScanPipeline, ScansWaitOnTheOwnersClockThenFail) {
     ASSERT_FALSE(run.results.empty());
     EXPECT_NEAR(run.results.back().waited, 0.15, 1e-9);
     // flush(): nothing more will come (the end of a bag).
-    run.pipeline.addScan(run.drive.scanAt(0.3), 0.5);
+    run.pipeline.add(run.drive.scanAt(0.3), 0.5);
     run.pipeline.flush();
     EXPECT_EQ(run.pipeline.waiting(), 0u);
     EXPECT_EQ(run.pipeline.counters().dropped_tf + run.pipeline.counters().passed_through, 2u);
@@ -182,7 +178,7 @@ TEST(ScanPipeline, TimeJumpClearsTheQueueOnceAndRecovers) {
   PipelineRun run{Drive()};
   run.statics(0.0);
   run.tfUntil(2.0);
-  run.pipeline.addScan(run.drive.scanAt(3.0), 3.0);  // waits: tf ends at 2 s
+  run.pipeline.add(run.drive.scanAt(3.0), 3.0);  // waits: tf ends at 2 s
   EXPECT_EQ(run.pipeline.waiting(), 1u);
   run.tf_until = -0.1;  // the bag starts again
   run.tfUntil(0.05);
@@ -202,7 +198,7 @@ TEST(ScanPipeline, ClockResetAloneIsATimeJump) {
   PipelineRun run{Drive()};
   run.statics(0.0);
   run.tfUntil(2.0);
-  run.pipeline.addScan(run.drive.scanAt(3.0), 3.0);  // waits: tf ends at 2 s
+  run.pipeline.add(run.drive.scanAt(3.0), 3.0);  // waits: tf ends at 2 s
   run.pipeline.expire(0.5);                          // the clock alone goes back 2.5 s
   EXPECT_EQ(run.pipeline.counters().time_jumps, 1u);
   EXPECT_EQ(run.pipeline.waiting(), 0u);
@@ -228,7 +224,7 @@ TEST(ScanPipeline, ClockFollowingTfBackIsTheSameJump) {
   for (double t = 0.0; t <= 0.1 + 1e-9; t += kTfPeriod)  // tf of the new time line, old clock
     run.pipeline.addTransforms({run.drive.motionAt(t)}, false, old_clock);
   EXPECT_EQ(run.pipeline.counters().time_jumps, 1u);
-  run.pipeline.addScan(run.drive.scanAt(0.1), old_clock);  // waits for tf up to its end
+  run.pipeline.add(run.drive.scanAt(0.1), old_clock);  // waits for tf up to its end
   run.pipeline.expire(0.14);                               // the clock comes back
   EXPECT_EQ(run.pipeline.counters().time_jumps, 1u);
   EXPECT_EQ(run.pipeline.waiting(), 1u);
@@ -275,7 +271,7 @@ TEST(ScanPipeline, ReconfiguredFailurePolicyApplies) {
   PipelineRun run{Drive()};
   run.statics(0.0);
   run.tfUntil(0.2);
-  run.pipeline.addScan(run.drive.scanAt(0.3), 0.3);  // its tf never comes
+  run.pipeline.add(run.drive.scanAt(0.3), 0.3);  // its tf never comes
   ros_adapter::DeskewParams next = run.pipeline.params();
   next.on_tf_failure = ros_adapter::OnTfFailure::kPassThrough;
   next.tf_timeout = 0.5;
@@ -298,7 +294,7 @@ TEST(ScanPipeline, GapsInSeqAreCountedAsLostUpstream) {
   const auto scanWithSeq = [&](std::uint32_t seq, double t) {
     const auto scan = run.drive.scanAt(t);
     scan->header.seq = seq;
-    run.pipeline.addScan(scan, t + 0.025);
+    run.pipeline.add(scan, t + 0.025);
     run.tfUntil(t + 0.05);
   };
   for (const std::uint32_t seq : {0u, 0u, 0u})
@@ -317,7 +313,7 @@ TEST(ScanPipeline, GapsInSeqAreCountedAsLostUpstream) {
 TEST(ScanPipeline, MissingMountIsDroppedAndNamed) {
   PipelineRun run{Drive()};
   run.tfUntil(0.2);
-  run.pipeline.addScan(run.drive.scanAt(0.1), 0.125);
+  run.pipeline.add(run.drive.scanAt(0.1), 0.125);
   run.pipeline.expire(1.0);
   EXPECT_EQ(run.pipeline.counters().dropped_mount, 1u);
   ASSERT_TRUE(run.said(PipelineEvent::kMountMissing));

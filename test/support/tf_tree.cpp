@@ -106,4 +106,8 @@ sensor_msgs::LaserScan::Ptr Drive::scanAt(double t) const {
   return boost::make_shared<sensor_msgs::LaserScan>(scanMessage(simulated, tree.laser));
 }
 
+double rms(const std::vector<double>& values) {
+  return sim::errorStats(values).rms;
+}
+
 }  // namespace lidar_deskew::test

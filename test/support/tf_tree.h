@@ -72,4 +72,7 @@ struct Drive {
   core::TimeNs epoch = 1'700'000'000'000'000'000;
 };
 
+/// RMS of errors [their unit].
+double rms(const std::vector<double>& values);
+
 }  // namespace lidar_deskew::test

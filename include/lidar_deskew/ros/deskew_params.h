@@ -7,6 +7,7 @@
 #include "lidar_deskew/core/deskew.h"
 #include "lidar_deskew/core/rebin.h"
 #include "lidar_deskew/core/scan.h"
+#include "lidar_deskew/ros/cloud_timing.h"
 #include "lidar_deskew/ros/node_handle_params.h"
 #include "lidar_deskew/ros/param_source.h"
 #include "lidar_deskew/ros/text_params.h"
@@ -41,6 +42,7 @@ struct DeskewParams {
   core::TimingConfig timing;             ///< stamp_at, scan_period [s], max_sweep_duration [s]
   core::DeskewConfig deskew;             ///< reference, knot_interval [s] (0 when exact)
   core::RebinConfig rebin;               ///< rebin_min_gap [m], rebin_gap_factor
+  CloudTimeConfig cloud_time;            ///< clouds: time_field, time_unit, time_base
   bool exact = false;                    ///< look tf up for every beam (verification, benchmarks)
   double tf_timeout = 0.2;               ///< [s] longest wait for tf to cover a sweep's last beam
   OnTfFailure on_tf_failure = OnTfFailure::kDrop;

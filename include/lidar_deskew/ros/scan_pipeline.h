@@ -14,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "lidar_deskew/ros/cloud_processor.h"
 #include "lidar_deskew/ros/deskew_params.h"
 #include "lidar_deskew/ros/scan_processor.h"
 #include "lidar_deskew/ros/tf_feed.h"
@@ -59,26 +60,34 @@ enum class PipelineEvent {
   kBadTransform,   ///< a transform was refused (warning)
 };
 
-/// A scan's outputs, handed to the owner.
-struct PipelineResult {
-  DeskewedOutputs outputs;
+/// A sweep's outputs, handed to the owner.
+template <class Outputs>
+struct SweepResult {
+  Outputs outputs;
   bool corrected = false;   ///< false: passed through uncorrected
   double waited = 0.0;      ///< [s] on the owner's clock, from arrival until tf covered it
   double correction = 0.0;  ///< [s] wall time spent correcting and building the messages
-  std::uint64_t id = 0;     ///< what the owner gave addScan for this scan (deskew_bag: its record time)
+  std::uint64_t id = 0;     ///< what the owner gave add() for this sweep (deskew_bag: its record time)
 };
+using PipelineResult = SweepResult<DeskewedOutputs>;
 
 /// Not thread-safe: the owner serialises calls.
-class ScanPipeline {
+/// One pipeline for every kind of sweep: `Processor` (ScanProcessor for LaserScans, CloudProcessor for
+/// PointCloud2s) prepares a message (checked, every point timed: Prepared::earliest() / latest()),
+/// corrects it and builds its outputs, or passes it through.
+template <class Processor>
+class SweepPipeline {
  public:
-  using Publish = std::function<void(const PipelineResult&)>;
+  using Message = typename Processor::Message;
+  using Result = SweepResult<typename Processor::Outputs>;
+  using Publish = std::function<void(const Result&)>;
   using Report = std::function<void(PipelineEvent, const std::string&)>;
 
   /// Throws core::InvalidInput for invalid parameters. `tf_cache_time` [s] of dynamic tf kept (at
   /// least tf_timeout + max_sweep_duration + 1 s, so a waiting scan's tf is never forgotten).
-  ScanPipeline(const DeskewParams& params, Publish publish, Report report, double tf_cache_time = 10.0);
-  ScanPipeline(const ScanPipeline&) = delete;  // its tf feed reports to `this`
-  ScanPipeline& operator=(const ScanPipeline&) = delete;
+  SweepPipeline(const DeskewParams& params, Publish publish, Report report, double tf_cache_time = 10.0);
+  SweepPipeline(const SweepPipeline&) = delete;  // its tf feed reports to `this`
+  SweepPipeline& operator=(const SweepPipeline&) = delete;
 
   /// Every `now` below is on the owner's clock. When it goes back by more than a second and tf has not
   /// (a /clock reset seen first, or alone), that is a time jump as when tf's stamps go back.
@@ -87,7 +96,7 @@ class ScanPipeline {
                      double now);
   /// A scan arriving at `now` [s]: checked, queued, served if tf already covers it. `id` comes back
   /// with its result.
-  void addScan(const sensor_msgs::LaserScan::ConstPtr& message, double now, std::uint64_t id = 0);
+  void add(const typename Message::ConstPtr& message, double now, std::uint64_t id = 0);
   /// Serves the scans tf covers, in arrival order (a waiting scan holds back those behind it).
   void serveReady(double now);
   /// The scans that have waited longer than tf_timeout at `now` [s]: extrapolated when
@@ -112,7 +121,7 @@ class ScanPipeline {
 
  private:
   struct Pending {
-    PreparedScan prepared;
+    typename Processor::Prepared prepared;
     std::string frame;  // normalised frame id
     double arrival = 0.0;
     std::uint64_t id = 0;
@@ -134,13 +143,18 @@ class ScanPipeline {
   Publish publish_;
   Report report_;
   TfFeed tf_;
-  ScanProcessor processor_;
+  Processor processor_;
   std::deque<Pending> pending_;
   PipelineCounters counters_;
   std::optional<std::uint32_t> last_seq_;  // header.seq of the last scan received
   std::optional<double> clock_;            // [s] the newest `now` given (since the last time jump)
   bool clock_follows_tf_ = false;          // tf went back; the clock going back next is the same jump
 };
+
+using ScanPipeline = SweepPipeline<ScanProcessor>;
+using CloudPipeline = SweepPipeline<CloudProcessor>;
+extern template class SweepPipeline<ScanProcessor>;
+extern template class SweepPipeline<CloudProcessor>;
 
 std::string toString(PipelineEvent event);
 

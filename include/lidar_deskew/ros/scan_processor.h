@@ -20,11 +20,19 @@ class TfGapTooLong : public core::MotionUnavailable {
   using core::MotionUnavailable::MotionUnavailable;
 };
 
+/// Throws TfGapTooLong when `motion` has a gap longer than max_tf_gap [s] (0 = never) in [first, last].
+void checkTfGaps(double max_tf_gap, const core::MotionSource& motion, core::TimeNs first, core::TimeNs last);
+
 /// A scan checked and timed, ready to be corrected once its motion is known.
 struct PreparedScan {
   sensor_msgs::LaserScan::ConstPtr message;
   core::PlanarScan scan;
   core::BeamTiming timing;
+
+  core::TimeNs earliest() const { return timing.earliestBeamTime(); }
+  core::TimeNs latest() const { return timing.latestBeamTime(); }
+  /// How the beams were timed when not by time_increment, for the log; nullptr when by it.
+  const char* timingFallback() const;
 };
 
 /// The two outputs of one scan, in the scan's frame, stamped at the reference time.
@@ -36,6 +44,10 @@ struct DeskewedOutputs {
 /// Corrects scans with the core; keeps its caches, so use one per input stream. Not thread-safe.
 class ScanProcessor {
  public:
+  using Message = sensor_msgs::LaserScan;
+  using Prepared = PreparedScan;
+  using Outputs = DeskewedOutputs;
+
   /// Throws core::InvalidInput for invalid parameters.
   explicit ScanProcessor(const DeskewParams& params);
 

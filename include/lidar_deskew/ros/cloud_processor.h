@@ -1,0 +1,73 @@
+// From a PointCloud2 with per-point times to the deskewed PointCloud2: the one code path of the cloud
+// nodelet and deskew_bag --cloud-topic (docs/DESIGN.md §7).
+#pragma once
+
+#include <sensor_msgs/PointCloud2.h>
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "lidar_deskew/core/deskew.h"
+#include "lidar_deskew/ros/cloud_timing.h"
+#include "lidar_deskew/ros/deskew_params.h"
+
+namespace lidar_deskew::ros_adapter {
+
+/// A cloud checked and timed, ready to be corrected once its motion is known.
+struct PreparedCloud {
+  sensor_msgs::PointCloud2::ConstPtr message;
+  CloudTimeField time_field;
+  std::vector<Eigen::Vector3d> points;  ///< [m] every point; NaN where it is no return
+  std::vector<core::TimeNs> times;      ///< [ns] every point's time
+  std::size_t returns = 0;              ///< points with finite coordinates, not at the origin
+  core::TimeNs first = 0;               ///< [ns] earliest return (header.stamp when none)
+  core::TimeNs last = 0;                ///< [ns] latest return
+
+  core::TimeNs earliest() const { return first; }
+  core::TimeNs latest() const { return last; }
+  /// How the cloud was timed, when not by its own time field (never, for now).
+  const char* timingFallback() const { return nullptr; }
+};
+
+/// The output of one cloud.
+struct CloudOutputs {
+  sensor_msgs::PointCloud2::ConstPtr cloud;  ///< every input field and its layout; stamped at the reference
+};
+
+/// Corrects clouds with the core. The output keeps every field and the layout of the input: x y z of
+/// each return replaced by its position in the input's frame at the reference time; the time field of
+/// each return rewritten to the time its position now holds (0 from the stamp, or the reference time
+/// when absolute), so a consumer that deskews by that field does not correct it twice. Points that are
+/// no return (a non-finite coordinate, or exactly the origin: "no return" for Ouster and others) are
+/// left as they were: an organized cloud keeps its shape. Not thread-safe.
+class CloudProcessor {
+ public:
+  using Message = sensor_msgs::PointCloud2;
+  using Prepared = PreparedCloud;
+  using Outputs = CloudOutputs;
+
+  explicit CloudProcessor(const DeskewParams& params);
+
+  /// Checks a cloud and reads every point's time. Throws core::InvalidInput naming the bad field (the
+  /// time field, when none is found or its values fit no unit: the message names the cloud's fields).
+  PreparedCloud prepare(const sensor_msgs::PointCloud2::ConstPtr& message) const;
+  /// Throws core::MotionUnavailable when the motion does not cover the sweep, TfGapTooLong when it has
+  /// a gap longer than max_tf_gap there.
+  CloudOutputs correct(const PreparedCloud& prepared, const mrpt::poses::CPose3D& mount,
+                       const core::MotionSource& motion);
+  /// The input itself (on_tf_failure: pass_through).
+  CloudOutputs passThrough(const PreparedCloud& prepared) const;
+
+ private:
+  DeskewParams params_;
+  CloudTimeConfig time_config_;
+  core::ScanDeskewer deskewer_;
+  std::vector<double> offsets_;
+  std::vector<Eigen::Vector3d> corrected_;
+  std::vector<double> corrected_offsets_;
+  std::vector<std::uint32_t> kept_;
+};
+
+}  // namespace lidar_deskew::ros_adapter

@@ -1,0 +1,69 @@
+// Per-point times of a sensor_msgs/PointCloud2, found from the fields the common drivers write, with no
+// configuration (docs/DESIGN.md §7). Units and absolute vs relative are decided from the values
+// against header.stamp; the sweep's first and last time come from the data.
+#pragma once
+
+#include <sensor_msgs/PointCloud2.h>
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "lidar_deskew/core/types.h"
+
+namespace lidar_deskew::ros_adapter {
+
+/// How to read a cloud's per-point time; the defaults find it alone.
+struct CloudTimeConfig {
+  std::string field;                ///< "" = the first present of kTimeFieldNames
+  std::string unit = "auto";        ///< auto | s | ms | us | ns
+  std::string base = "auto";        ///< auto | header (offsets from header.stamp) | absolute
+  double max_sweep_duration = 1.0;  ///< [s] a cloud's times span at most this
+
+  /// Throws core::InvalidInput naming the parameter (time_unit, time_base) for a bad value.
+  void validate() const;
+};
+
+/// The time field names looked for, in this order: Ouster `t`, Velodyne `time`, Hesai/RoboSense/Livox
+/// `timestamp`, Autoware `time_stamp`, Livox `offset_time`, laser_geometry `stamps`.
+extern const char* const kTimeFieldNames[6];
+
+/// The per-point time as found in one cloud.
+struct CloudTimeField {
+  std::string name;
+  std::uint8_t datatype = 0;  ///< sensor_msgs::PointField datatype
+  std::uint32_t offset = 0;   ///< within a point
+  bool absolute = false;      ///< values are times, not offsets from header.stamp
+  double unit = 1.0;          ///< [s] per value unit (1e-9 for ns)
+
+  /// "t (uint32, ns, from header.stamp)", for logs.
+  std::string describe() const;
+};
+
+/// The layout of a cloud checked against its data: little-endian, point_step holding every field,
+/// data holding height x row_step, row_step holding width x point_step. Throws core::InvalidInput
+/// naming the bad field.
+void checkCloudLayout(const sensor_msgs::PointCloud2& cloud);
+
+/// Byte offset of point `index` (row-major over height x width) in cloud.data.
+inline std::size_t pointOffset(const sensor_msgs::PointCloud2& cloud, std::size_t index) {
+  return (index / cloud.width) * cloud.row_step + (index % cloud.width) * cloud.point_step;
+}
+
+/// Reads a numeric field of the point at byte offset `at` (of any PointField datatype) as a double.
+double readNumber(const std::uint8_t* point, std::uint8_t datatype);
+
+/// Finds the time field and decides its unit and base from the values of every point against
+/// header.stamp: absolute when, in some unit, the values lie within max_sweep_duration + 1 s of
+/// header.stamp; otherwise offsets from header.stamp in the unit that makes their span a plausible
+/// sweep (at least 1 ms, at most max_sweep_duration; integer fields tried as ns, us, ms, s and
+/// floating ones as s, ms, us, ns). Throws core::InvalidInput("time field") with a message naming
+/// the cloud's fields when there is none, or its values fit no unit. The layout must be checked.
+CloudTimeField findTimeField(const sensor_msgs::PointCloud2& cloud, const CloudTimeConfig& config);
+
+/// Absolute time [ns] of every point, in index order. A non-finite time is an error
+/// (core::InvalidInput naming the field).
+void pointTimes(const sensor_msgs::PointCloud2& cloud, const CloudTimeField& field,
+                std::vector<core::TimeNs>& times);
+
+}  // namespace lidar_deskew::ros_adapter

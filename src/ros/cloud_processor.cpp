@@ -1,0 +1,140 @@
+#include "lidar_deskew/ros/cloud_processor.h"
+
+#include <sensor_msgs/PointField.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <limits>
+
+#include "lidar_deskew/ros/conversions.h"
+#include "lidar_deskew/ros/scan_processor.h"
+
+namespace lidar_deskew::ros_adapter {
+namespace {
+
+using sensor_msgs::PointField;
+
+/// The x, y or z field: float32 or float64.
+const PointField& coordinateField(const sensor_msgs::PointCloud2& cloud, const std::string& name) {
+  for (const PointField& field : cloud.fields) {
+    if (field.name != name)
+      continue;
+    if (field.datatype != PointField::FLOAT32 && field.datatype != PointField::FLOAT64)
+      throw core::InvalidInput("fields", name + " is neither float32 nor float64");
+    return field;
+  }
+  throw core::InvalidInput("fields", "no " + name + " field");
+}
+
+void writeNumber(std::uint8_t* at, std::uint8_t datatype, double value) {
+  const auto write = [at](auto typed) { std::memcpy(at, &typed, sizeof typed); };
+  switch (datatype) {
+    case PointField::INT8:
+      return write(static_cast<std::int8_t>(value));
+    case PointField::UINT8:
+      return write(static_cast<std::uint8_t>(value));
+    case PointField::INT16:
+      return write(static_cast<std::int16_t>(value));
+    case PointField::UINT16:
+      return write(static_cast<std::uint16_t>(value));
+    case PointField::INT32:
+      return write(static_cast<std::int32_t>(value));
+    case PointField::UINT32:
+      return write(static_cast<std::uint32_t>(value));
+    case PointField::FLOAT32:
+      return write(static_cast<float>(value));
+    case PointField::FLOAT64:
+      return write(value);
+  }
+}
+
+}  // namespace
+
+CloudProcessor::CloudProcessor(const DeskewParams& params)
+    : params_(params), time_config_(params.cloud_time), deskewer_(params.deskew) {
+  time_config_.max_sweep_duration = params.timing.max_sweep_duration;
+  time_config_.validate();
+}
+
+PreparedCloud CloudProcessor::prepare(const sensor_msgs::PointCloud2::ConstPtr& message) const {
+  const sensor_msgs::PointCloud2& cloud = *message;
+  if (cloud.header.frame_id.empty())
+    throw core::InvalidInput("header.frame_id", "is empty");
+  checkCloudLayout(cloud);
+  const PointField& x = coordinateField(cloud, "x");
+  const PointField& y = coordinateField(cloud, "y");
+  const PointField& z = coordinateField(cloud, "z");
+  PreparedCloud prepared;
+  prepared.message = message;
+  prepared.time_field = findTimeField(cloud, time_config_);
+  pointTimes(cloud, prepared.time_field, prepared.times);
+
+  const std::size_t count = prepared.times.size();
+  prepared.points.resize(count);
+  core::TimeNs first = std::numeric_limits<core::TimeNs>::max();
+  core::TimeNs last = std::numeric_limits<core::TimeNs>::min();
+  for (std::size_t i = 0; i < count; ++i) {
+    const std::uint8_t* point = &cloud.data[pointOffset(cloud, i)];
+    const Eigen::Vector3d p(readNumber(point + x.offset, x.datatype),
+                            readNumber(point + y.offset, y.datatype),
+                            readNumber(point + z.offset, z.datatype));
+    // No return: a non-finite coordinate, or exactly the origin (range 0).
+    if (!p.allFinite() || (p.x() == 0.0 && p.y() == 0.0 && p.z() == 0.0)) {
+      prepared.points[i].setConstant(std::numeric_limits<double>::quiet_NaN());
+      continue;
+    }
+    prepared.points[i] = p;
+    ++prepared.returns;
+    first = std::min(first, prepared.times[i]);
+    last = std::max(last, prepared.times[i]);
+  }
+  if (prepared.returns == 0)
+    first = last = toNs(cloud.header.stamp);
+  if (core::nsToSeconds(last - first) > params_.timing.max_sweep_duration) {
+    throw core::InvalidInput("time field", prepared.time_field.name + " spans " +
+                                               formatNumber(core::nsToSeconds(last - first)) +
+                                               " s, more than max_sweep_duration");
+  }
+  constexpr core::TimeNs kLatestTime = (static_cast<core::TimeNs>(1) << 32) * 1'000'000'000 - 100'000'000'000;
+  if (first < 0 || last > kLatestTime)
+    throw core::InvalidInput("time field", "puts the sweep outside the range of ROS time");
+  prepared.first = first;
+  prepared.last = last;
+  return prepared;
+}
+
+CloudOutputs CloudProcessor::correct(const PreparedCloud& prepared, const mrpt::poses::CPose3D& mount,
+                                     const core::MotionSource& motion) {
+  checkTfGaps(params_.max_tf_gap, motion, prepared.first, prepared.last);
+  const std::size_t count = prepared.points.size();
+  offsets_.resize(count);
+  for (std::size_t i = 0; i < count; ++i)
+    offsets_[i] = core::nsToSeconds(prepared.times[i] - prepared.first);
+  const core::TimeNs reference = deskewer_.deskewPoints(prepared.points, offsets_, prepared.first, mount,
+                                                        motion, corrected_, corrected_offsets_, kept_);
+
+  const sensor_msgs::PointCloud2& input = *prepared.message;
+  auto output = boost::make_shared<sensor_msgs::PointCloud2>(input);
+  output->header.stamp = toRosTime(reference);
+  const PointField& x = coordinateField(input, "x");
+  const PointField& y = coordinateField(input, "y");
+  const PointField& z = coordinateField(input, "z");
+  const CloudTimeField& time = prepared.time_field;
+  // The time each corrected position holds: the reference, 0 from the new stamp.
+  const double time_value = time.absolute ? static_cast<double>(reference) * 1e-9 / time.unit : 0.0;
+  for (std::size_t k = 0; k < kept_.size(); ++k) {
+    std::uint8_t* point = &output->data[pointOffset(input, kept_[k])];
+    writeNumber(point + x.offset, x.datatype, corrected_[k].x());
+    writeNumber(point + y.offset, y.datatype, corrected_[k].y());
+    writeNumber(point + z.offset, z.datatype, corrected_[k].z());
+    writeNumber(point + time.offset, time.datatype, time_value);
+  }
+  return {output};
+}
+
+CloudOutputs CloudProcessor::passThrough(const PreparedCloud& prepared) const {
+  return {prepared.message};
+}
+
+}  // namespace lidar_deskew::ros_adapter

@@ -1,0 +1,263 @@
+#include "lidar_deskew/ros/cloud_timing.h"
+
+#include <sensor_msgs/PointField.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <limits>
+
+#include "lidar_deskew/ros/conversions.h"
+
+namespace lidar_deskew::ros_adapter {
+
+const char* const kTimeFieldNames[6] = {"t", "time", "timestamp", "time_stamp", "offset_time", "stamps"};
+
+namespace {
+
+using sensor_msgs::PointField;
+
+std::size_t sizeOf(std::uint8_t datatype) {
+  switch (datatype) {
+    case PointField::INT8:
+    case PointField::UINT8:
+      return 1;
+    case PointField::INT16:
+    case PointField::UINT16:
+      return 2;
+    case PointField::INT32:
+    case PointField::UINT32:
+    case PointField::FLOAT32:
+      return 4;
+    case PointField::FLOAT64:
+      return 8;
+  }
+  return 0;
+}
+
+std::string typeName(std::uint8_t datatype) {
+  switch (datatype) {
+    case PointField::INT8:
+      return "int8";
+    case PointField::UINT8:
+      return "uint8";
+    case PointField::INT16:
+      return "int16";
+    case PointField::UINT16:
+      return "uint16";
+    case PointField::INT32:
+      return "int32";
+    case PointField::UINT32:
+      return "uint32";
+    case PointField::FLOAT32:
+      return "float32";
+    case PointField::FLOAT64:
+      return "float64";
+  }
+  return "type " + std::to_string(datatype);
+}
+
+bool isInteger(std::uint8_t datatype) {
+  return datatype != PointField::FLOAT32 && datatype != PointField::FLOAT64;
+}
+
+struct Unit {
+  const char* name;
+  double seconds;
+};
+constexpr Unit kUnits[] = {{"s", 1.0}, {"ms", 1e-3}, {"us", 1e-6}, {"ns", 1e-9}};
+
+std::string unitName(double seconds) {
+  for (const Unit& unit : kUnits) {
+    if (unit.seconds == seconds)
+      return unit.name;
+  }
+  return formatNumber(seconds) + " s";
+}
+
+/// The units to try, in order of preference for this field.
+std::vector<double> candidateUnits(const CloudTimeConfig& config, std::uint8_t datatype) {
+  for (const Unit& unit : kUnits) {
+    if (config.unit == unit.name)
+      return {unit.seconds};
+  }
+  if (isInteger(datatype))
+    return {1e-9, 1e-6, 1e-3, 1.0};
+  return {1.0, 1e-3, 1e-6, 1e-9};
+}
+
+std::string fieldList(const sensor_msgs::PointCloud2& cloud) {
+  std::string names;
+  for (const PointField& field : cloud.fields)
+    names += (names.empty() ? "" : ", ") + field.name + " (" + typeName(field.datatype) + ")";
+  return names.empty() ? "none" : names;
+}
+
+}  // namespace
+
+void CloudTimeConfig::validate() const {
+  if (unit != "auto" && std::none_of(std::begin(kUnits), std::end(kUnits),
+                                     [&](const Unit& known) { return unit == known.name; }))
+    throw core::InvalidInput("time_unit", "must be one of auto|s|ms|us|ns, got '" + unit + "'");
+  if (base != "auto" && base != "header" && base != "absolute")
+    throw core::InvalidInput("time_base", "must be one of auto|header|absolute, got '" + base + "'");
+}
+
+std::string CloudTimeField::describe() const {
+  return name + " (" + typeName(datatype) + ", " + unitName(unit) +
+         (absolute ? ", absolute)" : ", from header.stamp)");
+}
+
+void checkCloudLayout(const sensor_msgs::PointCloud2& cloud) {
+  if (cloud.is_bigendian)
+    throw core::InvalidInput("is_bigendian", "big-endian clouds are not supported");
+  if (cloud.point_step == 0 && cloud.width * static_cast<std::uint64_t>(cloud.height) > 0)
+    throw core::InvalidInput("point_step", "is 0");
+  for (const PointField& field : cloud.fields) {
+    const std::size_t size = sizeOf(field.datatype);
+    if (size == 0)
+      throw core::InvalidInput("fields",
+                               field.name + " has unknown datatype " + std::to_string(field.datatype));
+    if (field.offset + size * std::max<std::uint32_t>(1, field.count) > cloud.point_step)
+      throw core::InvalidInput("fields", field.name + " lies outside point_step");
+  }
+  if (static_cast<std::uint64_t>(cloud.width) * cloud.point_step > cloud.row_step)
+    throw core::InvalidInput("row_step", "is less than width x point_step");
+  if (static_cast<std::uint64_t>(cloud.height) * cloud.row_step > cloud.data.size())
+    throw core::InvalidInput("data", "holds less than height x row_step bytes");
+}
+
+double readNumber(const std::uint8_t* point, std::uint8_t datatype) {
+  const auto read = [point](auto value) {
+    std::memcpy(&value, point, sizeof value);
+    return static_cast<double>(value);
+  };
+  switch (datatype) {
+    case PointField::INT8:
+      return read(std::int8_t{});
+    case PointField::UINT8:
+      return read(std::uint8_t{});
+    case PointField::INT16:
+      return read(std::int16_t{});
+    case PointField::UINT16:
+      return read(std::uint16_t{});
+    case PointField::INT32:
+      return read(std::int32_t{});
+    case PointField::UINT32:
+      return read(std::uint32_t{});
+    case PointField::FLOAT32:
+      return read(float{});
+    case PointField::FLOAT64:
+      return read(double{});
+  }
+  return std::numeric_limits<double>::quiet_NaN();
+}
+
+CloudTimeField findTimeField(const sensor_msgs::PointCloud2& cloud, const CloudTimeConfig& config) {
+  const PointField* found = nullptr;
+  for (const PointField& field : cloud.fields) {
+    const bool wanted = config.field.empty()
+                            ? std::find(std::begin(kTimeFieldNames), std::end(kTimeFieldNames), field.name) !=
+                                  std::end(kTimeFieldNames)
+                            : field.name == config.field;
+    // The first of kTimeFieldNames present wins (a cloud may carry two).
+    if (wanted && (found == nullptr ||
+                   std::find(std::begin(kTimeFieldNames), std::end(kTimeFieldNames), field.name) <
+                       std::find(std::begin(kTimeFieldNames), std::end(kTimeFieldNames), found->name)))
+      found = &field;
+  }
+  if (found == nullptr) {
+    throw core::InvalidInput(
+        "time field",
+        (config.field.empty() ? std::string("none of t, time, timestamp, time_stamp, offset_time, stamps")
+                              : "no field '" + config.field + "'") +
+            " in the cloud; its fields: " + fieldList(cloud) +
+            " (set time_field, or the azimuth fallback for a spinning sensor)");
+  }
+  CloudTimeField result;
+  result.name = found->name;
+  result.datatype = found->datatype;
+  result.offset = found->offset;
+
+  // The values' range over every point.
+  const std::size_t count = static_cast<std::size_t>(cloud.width) * cloud.height;
+  double low = std::numeric_limits<double>::infinity();
+  double high = -low;
+  for (std::size_t i = 0; i < count; ++i) {
+    const double value = readNumber(&cloud.data[pointOffset(cloud, i) + result.offset], result.datatype);
+    if (!std::isfinite(value))
+      throw core::InvalidInput("time field",
+                               result.name + " of point " + std::to_string(i) + " is not finite");
+    low = std::min(low, value);
+    high = std::max(high, value);
+  }
+  if (count == 0)
+    low = high = 0.0;
+  const double stamp = toNs(cloud.header.stamp) * 1e-9;
+  const double sweep = config.max_sweep_duration;
+  const std::vector<double> units = candidateUnits(config, result.datatype);
+
+  // Absolute: in some unit, every value within a sweep and a second of the header.
+  if (config.base != "header" && count > 0) {
+    for (double unit : units) {
+      if (std::abs(low * unit - stamp) <= sweep + 1.0 && std::abs(high * unit - stamp) <= sweep + 1.0) {
+        result.absolute = true;
+        result.unit = unit;
+        return result;
+      }
+    }
+  }
+  // Offsets from the header: the unit whose span is a plausible sweep (at least 1 ms when one is), and
+  // the header within a second of the sweep.
+  if (config.base != "absolute") {
+    const auto fits = [&](double unit, double shortest) {
+      const double span = (high - low) * unit;
+      return span <= sweep && span >= shortest && std::abs(low * unit) <= sweep + 1.0 &&
+             std::abs(high * unit) <= sweep + 1.0;
+    };
+    for (double shortest : {1e-3, 0.0}) {
+      for (double unit : units) {
+        if (fits(unit, shortest)) {
+          result.absolute = false;
+          result.unit = unit;
+          return result;
+        }
+      }
+    }
+  }
+  throw core::InvalidInput(
+      "time field", result.name + " (" + typeName(result.datatype) + ") holds " + formatNumber(low) + " .. " +
+                        formatNumber(high) +
+                        ": in no unit (s, ms, us, ns) a sweep of at most max_sweep_duration " +
+                        formatNumber(sweep) + " s near header.stamp " + std::to_string(stamp) +
+                        " (set time_unit and time_base)");
+}
+
+void pointTimes(const sensor_msgs::PointCloud2& cloud, const CloudTimeField& field,
+                std::vector<core::TimeNs>& times) {
+  const std::size_t count = static_cast<std::size_t>(cloud.width) * cloud.height;
+  times.resize(count);
+  const core::TimeNs base = field.absolute ? 0 : toNs(cloud.header.stamp);
+  const bool exact_ns = field.unit == 1e-9 && isInteger(field.datatype);
+  const auto unit_ns = static_cast<core::TimeNs>(std::llround(field.unit * 1e9));
+  for (std::size_t i = 0; i < count; ++i) {
+    const std::uint8_t* at = &cloud.data[pointOffset(cloud, i) + field.offset];
+    if (exact_ns && field.datatype == PointField::UINT32) {
+      std::uint32_t value;
+      std::memcpy(&value, at, sizeof value);
+      times[i] = base + value;
+      continue;
+    }
+    const double value = readNumber(at, field.datatype);
+    if (!std::isfinite(value))
+      throw core::InvalidInput("time field",
+                               field.name + " of point " + std::to_string(i) + " is not finite");
+    // [ns] from the value, whole units and the fraction apart: the conversion adds no error to what
+    // the value holds (float64 seconds at epoch-sized times hold about 0.1 us).
+    const double whole = std::floor(value);
+    times[i] = base + static_cast<core::TimeNs>(whole) * unit_ns +
+               static_cast<core::TimeNs>(std::llround((value - whole) * static_cast<double>(unit_ns)));
+  }
+}
+
+}  // namespace lidar_deskew::ros_adapter

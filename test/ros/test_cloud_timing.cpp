@@ -1,0 +1,201 @@
+// Per-point times of PointCloud2s in each common driver's convention, found with no configuration:
+// the decided field, unit and base, and every point's time against the time it was written from.
+#include <gtest/gtest.h>
+#include <sensor_msgs/PointField.h>
+
+#include <cstring>
+#include <functional>
+
+#include "lidar_deskew/ros/cloud_timing.h"
+#include "lidar_deskew/ros/conversions.h"
+
+namespace lidar_deskew::test {
+namespace {
+
+using ros_adapter::CloudTimeConfig;
+using ros_adapter::CloudTimeField;
+using sensor_msgs::PointField;
+
+constexpr core::TimeNs kSweepStart = 1'700'000'123'456'789'000;  // [ns]
+constexpr double kSweep = 0.1;                                   // [s] first to last point
+constexpr std::size_t kPoints = 1000;
+
+/// The true time of point i [ns]: evenly over the sweep.
+core::TimeNs trueTime(std::size_t i) {
+  return kSweepStart + core::secondsToNs(kSweep * static_cast<double>(i) / (kPoints - 1));
+}
+
+/// A cloud of kPoints with x y z float32 and one time field of `datatype`, whose value for point i
+/// is `value(i)`, stamped `stamp`.
+sensor_msgs::PointCloud2 cloudWith(const std::string& name, std::uint8_t datatype, core::TimeNs stamp,
+                                   const std::function<double(std::size_t)>& value) {
+  sensor_msgs::PointCloud2 cloud;
+  cloud.header.stamp = ros_adapter::toRosTime(stamp);
+  cloud.header.frame_id = "lidar";
+  for (const char* axis : {"x", "y", "z"}) {
+    PointField field;
+    field.name = axis;
+    field.offset = static_cast<std::uint32_t>(4 * cloud.fields.size());
+    field.datatype = PointField::FLOAT32;
+    field.count = 1;
+    cloud.fields.push_back(field);
+  }
+  PointField time;
+  time.name = name;
+  time.offset = 16;  // padded, as drivers do
+  time.datatype = datatype;
+  time.count = 1;
+  cloud.fields.push_back(time);
+  cloud.point_step = 16 + 8;
+  cloud.width = kPoints;
+  cloud.height = 1;
+  cloud.row_step = cloud.point_step * cloud.width;
+  cloud.data.assign(cloud.row_step, 0);
+  for (std::size_t i = 0; i < kPoints; ++i) {
+    std::uint8_t* point = &cloud.data[i * cloud.point_step];
+    const float xyz[3] = {1.0f, 2.0f, 0.5f};
+    std::memcpy(point, xyz, sizeof xyz);
+    const double v = value(i);
+    switch (datatype) {
+      case PointField::UINT32: {
+        const auto typed = static_cast<std::uint32_t>(std::llround(v));
+        std::memcpy(point + 16, &typed, sizeof typed);
+        break;
+      }
+      case PointField::FLOAT32: {
+        const auto typed = static_cast<float>(v);
+        std::memcpy(point + 16, &typed, sizeof typed);
+        break;
+      }
+      case PointField::FLOAT64:
+        std::memcpy(point + 16, &v, sizeof v);
+        break;
+      default:
+        ADD_FAILURE() << "type not written by this test";
+    }
+  }
+  return cloud;
+}
+
+struct Case {
+  const char* driver;
+  const char* field;
+  std::uint8_t datatype;
+  core::TimeNs stamp;  // header.stamp as the driver sets it
+  std::function<double(std::size_t)> value;
+  bool absolute;
+  double unit;
+  double tolerance;  // [ns] of the decoded times (float32 seconds keep ~8 ns at 0.1 s)
+};
+
+/// A time as drivers write it in float64 seconds: whole seconds plus the fraction (to the double
+/// nearest, about 0.1 us at epoch-sized times).
+double absoluteSeconds(core::TimeNs time) {
+  return static_cast<double>(time / 1'000'000'000) + static_cast<double>(time % 1'000'000'000) * 1e-9;
+}
+
+double relativeSeconds(std::size_t i, core::TimeNs stamp) {
+  return core::nsToSeconds(trueTime(i) - stamp);
+}
+
+TEST(CloudTiming, EveryCommonDriverConventionIsFoundAlone) {
+  const core::TimeNs last = trueTime(kPoints - 1);
+  const std::vector<Case> cases = {
+      {"Ouster", "t", PointField::UINT32, kSweepStart,
+       [](std::size_t i) { return static_cast<double>(trueTime(i) - kSweepStart); }, false, 1e-9, 0},
+      {"Velodyne (first packet)", "time", PointField::FLOAT32, kSweepStart,
+       [](std::size_t i) { return relativeSeconds(i, kSweepStart); }, false, 1.0, 10},
+      {"Velodyne (last packet)", "time", PointField::FLOAT32, last,
+       [last](std::size_t i) { return relativeSeconds(i, last); }, false, 1.0, 10},
+      {"Hesai", "timestamp", PointField::FLOAT64, kSweepStart,
+       [](std::size_t i) { return absoluteSeconds(trueTime(i)); }, true, 1.0, 150},
+      {"RoboSense (stamp at the last point)", "timestamp", PointField::FLOAT64, last,
+       [](std::size_t i) { return absoluteSeconds(trueTime(i)); }, true, 1.0, 150},
+      {"Livox ROS driver 2", "timestamp", PointField::FLOAT64, kSweepStart,
+       [](std::size_t i) { return static_cast<double>(trueTime(i)); }, true, 1e-9, 300},
+      {"Autoware", "time_stamp", PointField::UINT32, kSweepStart,
+       [](std::size_t i) { return static_cast<double>(trueTime(i) - kSweepStart); }, false, 1e-9, 0},
+      {"Livox custom", "offset_time", PointField::UINT32, kSweepStart,
+       [](std::size_t i) { return static_cast<double>(trueTime(i) - kSweepStart); }, false, 1e-9, 0},
+      {"laser_geometry", "stamps", PointField::FLOAT32, kSweepStart,
+       [](std::size_t i) { return relativeSeconds(i, kSweepStart); }, false, 1.0, 10},
+      {"microseconds (uint32)", "t", PointField::UINT32, kSweepStart,
+       [](std::size_t i) { return 1e-3 * static_cast<double>(trueTime(i) - kSweepStart); }, false, 1e-6,
+       1000},
+  };
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.driver);
+    const sensor_msgs::PointCloud2 cloud = cloudWith(c.field, c.datatype, c.stamp, c.value);
+    ros_adapter::checkCloudLayout(cloud);
+    const CloudTimeField found = ros_adapter::findTimeField(cloud, CloudTimeConfig());
+    EXPECT_EQ(found.name, c.field);
+    EXPECT_EQ(found.absolute, c.absolute) << found.describe();
+    EXPECT_EQ(found.unit, c.unit) << found.describe();
+    std::vector<core::TimeNs> times;
+    ros_adapter::pointTimes(cloud, found, times);
+    ASSERT_EQ(times.size(), kPoints);
+    core::TimeNs worst = 0;
+    for (std::size_t i = 0; i < kPoints; ++i)
+      worst = std::max(worst, std::abs(times[i] - trueTime(i)));
+    EXPECT_LE(worst, c.tolerance + 1) << found.describe();
+  }
+}
+
+TEST(CloudTiming, ParametersOverrideTheDecision) {
+  // Offsets in ms that would pass for a (short) sweep in s: the unit given wins.
+  const sensor_msgs::PointCloud2 cloud =
+      cloudWith("time", PointField::FLOAT32, kSweepStart, [](std::size_t i) {
+        return 1e3 * relativeSeconds(i, kSweepStart) * 0.005;  // 0 .. 0.5 "ms"
+      });
+  CloudTimeConfig config;
+  EXPECT_EQ(ros_adapter::findTimeField(cloud, config).unit, 1.0);
+  config.unit = "ms";
+  EXPECT_EQ(ros_adapter::findTimeField(cloud, config).unit, 1e-3);
+  // A field of another name, named.
+  const sensor_msgs::PointCloud2 other =
+      cloudWith("point_time", PointField::FLOAT32, kSweepStart,
+                [](std::size_t i) { return relativeSeconds(i, kSweepStart); });
+  config = CloudTimeConfig();
+  EXPECT_THROW(ros_adapter::findTimeField(other, config), core::InvalidInput);
+  config.field = "point_time";
+  EXPECT_EQ(ros_adapter::findTimeField(other, config).name, "point_time");
+  config.unit = "minutes";
+  EXPECT_THROW(config.validate(), core::InvalidInput);
+}
+
+TEST(CloudTiming, NoTimeFieldIsAnErrorNamingTheCloudsFields) {
+  sensor_msgs::PointCloud2 cloud =
+      cloudWith("intensity", PointField::FLOAT32, kSweepStart, [](std::size_t) { return 7.0; });
+  try {
+    ros_adapter::findTimeField(cloud, CloudTimeConfig());
+    ADD_FAILURE() << "found a time field";
+  } catch (const core::InvalidInput& error) {
+    const std::string text = error.what();
+    EXPECT_NE(text.find("x (float32), y (float32), z (float32), intensity (float32)"), std::string::npos)
+        << text;
+  }
+  // Values that are no sweep in any unit near the header: refused, not guessed.
+  cloud = cloudWith("time", PointField::FLOAT64, kSweepStart, [](std::size_t i) { return 1e7 * i; });
+  EXPECT_THROW(ros_adapter::findTimeField(cloud, CloudTimeConfig()), core::InvalidInput);
+}
+
+TEST(CloudTiming, BadLayoutsAreRefusedNamingTheField) {
+  sensor_msgs::PointCloud2 cloud =
+      cloudWith("t", PointField::UINT32, kSweepStart, [](std::size_t) { return 0.0; });
+  cloud.data.resize(cloud.data.size() - 1);
+  try {
+    ros_adapter::checkCloudLayout(cloud);
+    ADD_FAILURE();
+  } catch (const core::InvalidInput& error) {
+    EXPECT_EQ(error.field(), "data");
+  }
+  cloud = cloudWith("t", PointField::UINT32, kSweepStart, [](std::size_t) { return 0.0; });
+  cloud.fields.back().offset = cloud.point_step - 2;
+  EXPECT_THROW(ros_adapter::checkCloudLayout(cloud), core::InvalidInput);
+  cloud = cloudWith("t", PointField::UINT32, kSweepStart, [](std::size_t) { return 0.0; });
+  cloud.row_step = 4;
+  EXPECT_THROW(ros_adapter::checkCloudLayout(cloud), core::InvalidInput);
+}
+
+}  // namespace
+}  // namespace lidar_deskew::test
