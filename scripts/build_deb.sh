@@ -13,7 +13,7 @@
 set -euo pipefail
 export PATH=/usr/bin:/bin:/usr/sbin:/sbin:$PATH
 export PYTHONNOUSERSITE=1
-repo=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
+repo=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd -P) # one path whether called through a link or not
 script="$repo/scripts/build_deb.sh"
 jobs=${LIDAR_DESKEW_JOBS:-2}
 package=ros-lidar-deskew
@@ -39,8 +39,7 @@ install -D -m 644 "$repo/LICENSE" "$stage/usr/share/doc/$package/copyright"
 
 # Unchanged files, script and manifest: the .deb is up to date.
 stamp="$work/contents.md5"
-contents=$( (cd "$stage" && find . -type f | LC_ALL=C sort | xargs md5sum; md5sum "$repo/package.xml" "$script") |
-  md5sum)
+contents=$( (cd "$stage" && find . -type f | LC_ALL=C sort | xargs md5sum; cat "$repo/package.xml" "$script") | md5sum)
 if [ -f "$deb" ] && [ -f "$stamp" ] && [ "$(cat "$stamp")" = "$contents" ]; then
   echo "$deb"
   exit 0

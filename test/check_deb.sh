@@ -19,10 +19,13 @@ if [ "${1:-}" = --inside ]; then
   repo=$3
   multiarch=$(dpkg-architecture -qDEB_HOST_MULTIARCH)
   # A whiteout (character device 0/0) hides what the machine itself has of ours under /usr.
-  mkdir -p "$scratch/hide/lib/$multiarch/cmake" "$scratch/hide/lib/$multiarch/pkgconfig" "$scratch/hide/share"
+  mkdir -p "$scratch/hide"
   for path in lib/lidar_deskew share/lidar_deskew include/lidar_deskew "lib/$multiarch/cmake/lidar_deskew" \
     "lib/$multiarch/pkgconfig/lidar_deskew.pc" $(cd /usr && ls -d "lib/$multiarch"/liblidar_deskew* 2>/dev/null); do
-    if [ -e "/usr/$path" ]; then mknod "$scratch/hide/$path" c 0 0; fi
+    if [ -e "/usr/$path" ]; then
+      mkdir -p "$(dirname "$scratch/hide/$path")"
+      mknod "$scratch/hide/$path" c 0 0
+    fi
   done
   mount -t overlay overlay -o "lowerdir=$scratch/root/usr:$scratch/hide:/usr" /usr
 
@@ -39,10 +42,12 @@ if [ "${1:-}" = --inside ]; then
   corrected=$(($(count published) - $(count "passed through")))
   echo "received $received, corrected $corrected"
   [ "$received" -eq 60 ] && [ "$corrected" -gt 50 ] || { echo "FAIL: expected 60 scans, > 50 corrected"; exit 1; }
-  rosbag info "$scratch/neato.bag" | grep -q "/stable_scan_deskewed " || { echo "FAIL: no corrected scans in the bag"; exit 1; }
+  rosbag info "$scratch/neato.bag" >"$scratch/neato.txt"
+  grep -q "/stable_scan_deskewed " "$scratch/neato.txt" || { echo "FAIL: no corrected scans in the bag"; exit 1; }
 
   echo "== (b) the nodelet from the package's nodelets.xml"
-  rospack plugins --attrib=plugin nodelet | grep -qx "lidar_deskew /usr/share/lidar_deskew/nodelets.xml" ||
+  rospack plugins --attrib=plugin nodelet >"$scratch/plugins.txt"
+  grep -qx "lidar_deskew /usr/share/lidar_deskew/nodelets.xml" "$scratch/plugins.txt" ||
     { echo "FAIL: rospack does not see nodelets.xml"; exit 1; }
   port=$(python3 -c 'import socket; s = socket.socket(); s.bind(("localhost", 0)); print(s.getsockname()[1])')
   export ROS_MASTER_URI=http://localhost:$port ROS_HOSTNAME=localhost
@@ -64,8 +69,8 @@ if [ "${1:-}" = --inside ]; then
     sleep 0.5
   done
   rosnode list
-  rostopic list
-  if ! grep "$started" "$ROS_HOME/log/latest/rosout.log" || ! rostopic list | grep -qx /scan_deskewed; then
+  rostopic list | tee "$scratch/topics.txt"
+  if ! grep "$started" "$ROS_HOME/log/latest/rosout.log" || ! grep -qx /scan_deskewed "$scratch/topics.txt"; then
     cat "$scratch/roslaunch.log"
     echo "FAIL: the nodelet did not start from the package"
     exit 1
@@ -116,12 +121,14 @@ field() { dpkg-deb -f "$deb" "$1"; }
 version=$(sed -n 's:.*<version>\(.*\)</version>.*:\1:p' "$repo/package.xml" | head -n 1)
 [ "$(field Package)" = ros-lidar-deskew ] && [ "$(field Version)" = "$version" ] &&
   [ "$(field Architecture)" = "$(dpkg --print-architecture)" ] || { echo "FAIL: control fields"; exit 1; }
-echo "Depends: $(field Depends)"
+depends=$(field Depends)
+echo "Depends: $depends"
 for dependency in libmrpt-poses2.5 libroscpp4d libnodeletlib1d rosbash python3-roslaunch libnodeletlib-tools; do
-  field Depends | grep -q "\b$dependency\b" || { echo "FAIL: Depends lacks $dependency"; exit 1; }
+  grep -q "\b$dependency\b" <<<"$depends" || { echo "FAIL: Depends lacks $dependency"; exit 1; }
 done
 apt-get install -s "$deb" >"$scratch/apt.log" 2>&1 || { cat "$scratch/apt.log"; echo "FAIL: apt cannot install it"; exit 1; }
-grep -E "^Inst ros-lidar-deskew|ros-lidar-deskew is already the newest" "$scratch/apt.log"
+grep -E "^Inst ros-lidar-deskew|ros-lidar-deskew is already the newest" "$scratch/apt.log" ||
+  { cat "$scratch/apt.log"; echo "FAIL: apt would not install it"; exit 1; }
 # Debian's layout, and no catkin workspace files in /usr.
 files=$(dpkg-deb -c "$deb" | awk '{print $6}')
 echo "$(echo "$files" | wc -l) entries"
@@ -133,9 +140,9 @@ for path in usr/lib/lidar_deskew/deskew_node usr/lib/lidar_deskew/deskew_bag usr
   usr/share/lidar_deskew/package.xml usr/share/lidar_deskew/nodelets.xml usr/share/lidar_deskew/launch/deskew.launch \
   usr/share/lidar_deskew/launch/deskew_node.launch usr/share/lidar_deskew/launch/core_demo.launch \
   usr/share/lidar_deskew/config/deskew.yaml usr/share/lidar_deskew/rviz/deskew.rviz; do
-  echo "$files" | grep -qx "./$path" || { echo "FAIL: the package lacks /$path"; exit 1; }
+  grep -qx "./$path" <<<"$files" || { echo "FAIL: the package lacks /$path"; exit 1; }
 done
-if echo "$files" | grep -E '/(setup|local_setup)\.[a-z]+$|_setup_util\.py$|\.catkin$|/env\.sh$'; then
+if grep -E '/(setup|local_setup)\.[a-z]+$|_setup_util\.py$|\.catkin$|/env\.sh$' <<<"$files"; then
   echo "FAIL: workspace setup files in the package"
   exit 1
 fi
