@@ -60,17 +60,18 @@ if [ "${1:-}" = --inside ]; then
     if rosnode list >/dev/null 2>&1; then break; fi
     sleep 0.5
   done
-  roslaunch lidar_deskew deskew.launch scan:=/scan >"$scratch/roslaunch.log" 2>&1 &
+  # the manager's start-up line goes to a file: flushed line by line (rosconsole, and roslaunch's own)
+  ROSCONSOLE_STDOUT_LINE_BUFFERED=1 PYTHONUNBUFFERED=1 \
+    roslaunch lidar_deskew deskew.launch scan:=/scan >"$scratch/roslaunch.log" 2>&1 &
   pids+=($!)
-  # the start-up line, as rosout records it (the manager's own stdout is a buffered file here)
   started="/scan -> /scan_deskewed and /scan_deskewed_points"
   for _ in $(seq 60); do
-    if grep -qs "$started" "$ROS_HOME/log/latest/rosout.log"; then break; fi
+    if grep -qs -e "$started" -e "process has died" "$scratch/roslaunch.log"; then break; fi
     sleep 0.5
   done
   rosnode list
   rostopic list | tee "$scratch/topics.txt"
-  if ! grep "$started" "$ROS_HOME/log/latest/rosout.log" || ! grep -qx /scan_deskewed "$scratch/topics.txt"; then
+  if ! grep "$started" "$scratch/roslaunch.log" || ! grep -qx /scan_deskewed "$scratch/topics.txt"; then
     cat "$scratch/roslaunch.log"
     echo "FAIL: the nodelet did not start from the package"
     exit 1
