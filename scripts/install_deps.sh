@@ -7,6 +7,8 @@ export PATH=/usr/bin:/bin:/usr/sbin:/sbin:$PATH
 PACKAGES=(
   # toolchain and test tools
   cmake g++ make git libgtest-dev libbenchmark-dev bc
+  # the Debian package: dpkg-shlibdeps, dpkg-architecture
+  dpkg-dev
   # fuzzing: clang with libFuzzer, ASan and UBSan
   clang libclang-rt-14-dev
   # ROS 1 from Debian: catkin, roscpp, nodelet, tf2, messages, rostest, rosbag
