@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <memory>
 #include <set>
+#include <tuple>
 
 #include "lidar_deskew/ros/bag_file.h"
 #include "lidar_deskew/ros/conversions.h"
@@ -34,15 +35,94 @@ std::string joined(const std::vector<std::string>& items) {
   return text.empty() ? "none" : text;
 }
 
+/// The outputs of a scan: the corrected scan and its cloud.
+void writeOutputs(rosbag::Bag& output, const std::string& topic, bool replace, const ros::Time& time,
+                  const ros_adapter::DeskewedOutputs& outputs) {
+  output.write(replace ? topic : topic + "_deskewed", time, *outputs.scan);
+  output.write(topic + "_deskewed_points", time, *outputs.cloud);
+}
+
+/// The output of a cloud: the corrected cloud.
+void writeOutputs(rosbag::Bag& output, const std::string& topic, bool replace, const ros::Time& time,
+                  const ros_adapter::CloudOutputs& outputs) {
+  output.write(replace ? topic : topic + "_deskewed", time, *outputs.cloud);
+}
+
+/// One topic to correct and its pipeline.
+class Stream {
+ public:
+  virtual ~Stream() = default;
+  virtual void addTransforms(const std::vector<geometry_msgs::TransformStamped>& transforms, bool is_static,
+                             double now) = 0;
+  /// Writes the message as read (its connection header kept) and feeds it to the pipeline.
+  virtual void add(const rosbag::MessageInstance& message, double now) = 0;
+  virtual void expire(double now) = 0;
+  virtual void flush() = 0;
+  virtual const ros_adapter::PipelineCounters& counters() const = 0;
+  virtual const ros_adapter::TfFeed& tf() const = 0;
+};
+
+template <class Processor>
+class PipelineStream final : public Stream {
+ public:
+  using Pipeline = ros_adapter::SweepPipeline<Processor>;
+  using Message = typename Processor::Message;
+
+  PipelineStream(const std::string& topic, const BagDeskewOptions& options, rosbag::Bag& output,
+                 typename Pipeline::Report report)
+      : topic_(topic),
+        replace_(options.replace),
+        output_(output),
+        // Outputs are written at their sweep's record time (the id it was given), next to it in the bag.
+        pipeline_(
+            options.params,
+            [this](const typename Pipeline::Result& result) {
+              ros::Time record_time;
+              record_time.fromNSec(result.id);
+              writeOutputs(output_, topic_, replace_, record_time, result.outputs);
+            },
+            std::move(report)) {}
+
+  void addTransforms(const std::vector<geometry_msgs::TransformStamped>& transforms, bool is_static,
+                     double now) override {
+    pipeline_.addTransforms(transforms, is_static, now);
+  }
+  void add(const rosbag::MessageInstance& message, double now) override {
+    const auto sweep = message.instantiate<Message>();
+    if (!sweep) {
+      throw std::runtime_error(topic_ + " carries " + message.getDataType() + ", not " +
+                               ros::message_traits::DataType<Message>::value());
+    }
+    // As read (read once), with its original connection header.
+    output_.write(replace_ ? topic_ + "_raw" : topic_, message.getTime(), sweep,
+                  message.getConnectionHeader());
+    pipeline_.add(sweep, now, message.getTime().toNSec());
+  }
+  void expire(double now) override { pipeline_.expire(now); }
+  void flush() override { pipeline_.flush(); }
+  const ros_adapter::PipelineCounters& counters() const override { return pipeline_.counters(); }
+  const ros_adapter::TfFeed& tf() const override { return pipeline_.tf(); }
+
+ private:
+  std::string topic_;
+  bool replace_;
+  rosbag::Bag& output_;
+  Pipeline pipeline_;
+};
+
 }  // namespace
 
-std::vector<std::string> laserScanTopics(rosbag::Bag& bag) {
+std::vector<std::string> topicsOfType(rosbag::Bag& bag, const std::string& datatype) {
   std::set<std::string> topics;
   for (const rosbag::ConnectionInfo* connection : rosbag::View(bag).getConnections()) {
-    if (connection->datatype == "sensor_msgs/LaserScan")
+    if (connection->datatype == datatype)
       topics.insert(connection->topic);
   }
   return {topics.begin(), topics.end()};
+}
+
+std::vector<std::string> laserScanTopics(rosbag::Bag& bag) {
+  return topicsOfType(bag, "sensor_msgs/LaserScan");
 }
 
 BagDeskewSummary deskewBag(const BagDeskewOptions& options) {
@@ -65,34 +145,51 @@ BagDeskewSummary deskewBag(const BagDeskewOptions& options) {
 
   rosbag::Bag input = ros_adapter::openBagForReading(options.input);
   BagDeskewSummary summary;
-  std::vector<std::string> available;
+  std::vector<std::string> scans_available, clouds_available;
   try {
-    available = laserScanTopics(input);
+    scans_available = laserScanTopics(input);
+    clouds_available = topicsOfType(input, "sensor_msgs/PointCloud2");
   } catch (const rosbag::BagException& error) {
     throw std::runtime_error("cannot read " + options.input + ": " + error.what());
   }
-  summary.chosen_topics = options.scan_topics;
-  if (summary.chosen_topics.empty()) {
-    if (available.empty())
-      throw std::runtime_error(options.input + " has no sensor_msgs/LaserScan topic");
-    summary.chosen_topics = available;
-    inform("no --scan-topic given: correcting " + joined(available) + " (the bag's LaserScan topics)");
-  }
-  std::map<std::string, std::unique_ptr<ros_adapter::ScanPipeline>> streams;  // by scan topic
-  for (const std::string& topic : summary.chosen_topics) {
-    if (std::find(available.begin(), available.end(), topic) == available.end()) {
-      throw std::runtime_error(options.input + " has no LaserScan on " + topic +
-                               "; its LaserScan topics: " + joined(available));
+  std::vector<std::string> scan_topics = options.scan_topics;
+  std::vector<std::string> cloud_topics = options.cloud_topics;
+  if (scan_topics.empty() && cloud_topics.empty()) {
+    if (!scans_available.empty()) {
+      scan_topics = scans_available;
+      inform("no --scan-topic given: correcting " + joined(scans_available) +
+             " (the bag's LaserScan topics)");
+    } else if (!clouds_available.empty()) {
+      cloud_topics = clouds_available;
+      inform("no --scan-topic or --cloud-topic given: correcting " + joined(clouds_available) +
+             " (the bag's PointCloud2 topics)");
+    } else {
+      throw std::runtime_error(options.input +
+                               " has no sensor_msgs/LaserScan or sensor_msgs/PointCloud2 topic");
     }
-    // Each kind of note once per topic; the counts are in the summary.
+  }
+  summary.cloud_topics = cloud_topics;
+  for (const auto& [topics, available, type] :
+       {std::make_tuple(&scan_topics, &scans_available, "LaserScan"),
+        std::make_tuple(&cloud_topics, &clouds_available, "PointCloud2")}) {
+    for (const std::string& topic : *topics) {
+      if (std::find(available->begin(), available->end(), topic) == available->end()) {
+        throw std::runtime_error(options.input + " has no " + type + " on " + topic + "; its " + type +
+                                 " topics: " + joined(*available));
+      }
+      summary.chosen_topics.push_back(topic);
+    }
+  }
+  // Each kind of note once per topic; the counts are in the summary.
+  const auto reporter = [inform](const std::string& topic) {
     auto said = std::make_shared<std::set<PipelineEvent>>();
-    const auto report = [inform, topic, said](PipelineEvent event, const std::string& text) {
+    return [inform, topic, said](PipelineEvent event, const std::string& text) {
       // Statics left out are said once per frame by the pipeline already; mount changes, once here.
       if (event == PipelineEvent::kStaticIgnored || said->insert(event).second)
         inform(topic + ": " + text);
     };
-    streams[topic] = std::make_unique<ros_adapter::ScanPipeline>(options.params, nullptr, report);
-  }
+  };
+  std::map<std::string, std::unique_ptr<Stream>> streams;  // by topic
 
   const auto corrected = [&streams] {
     std::size_t scans = 0;
@@ -105,15 +202,13 @@ BagDeskewSummary deskewBag(const BagDeskewOptions& options) {
   try {
     rosbag::Bag output(temporary, rosbag::bagmode::Write);
     output.setCompression(compression);
-    for (auto& [topic_name, pipeline] : streams) {
-      const std::string topic = topic_name;  // captured by value: the lambda outlives this loop
-      // Outputs are written at their scan's record time (the id it was given), next to it in the bag.
-      pipeline->setPublish([&output, &options, topic](const ros_adapter::PipelineResult& result) {
-        ros::Time record_time;
-        record_time.fromNSec(result.id);
-        output.write(options.replace ? topic : topic + "_deskewed", record_time, *result.outputs.scan);
-        output.write(topic + "_deskewed_points", record_time, *result.outputs.cloud);
-      });
+    for (const std::string& topic : scan_topics) {
+      streams[topic] = std::make_unique<PipelineStream<ros_adapter::ScanProcessor>>(topic, options, output,
+                                                                                    reporter(topic));
+    }
+    for (const std::string& topic : cloud_topics) {
+      streams[topic] = std::make_unique<PipelineStream<ros_adapter::CloudProcessor>>(topic, options, output,
+                                                                                     reporter(topic));
     }
 
     rosbag::View view(input);
@@ -137,15 +232,7 @@ BagDeskewSummary deskewBag(const BagDeskewOptions& options) {
           }
         }
       } else {
-        const auto scan = message.instantiate<sensor_msgs::LaserScan>();
-        if (!scan) {
-          throw std::runtime_error(topic + " carries " + message.getDataType() +
-                                   ", not sensor_msgs/LaserScan");
-        }
-        // The scan as read (read once), with its original connection header.
-        output.write(options.replace ? topic + "_raw" : topic, message.getTime(), scan,
-                     message.getConnectionHeader());
-        stream->second->add(scan, now, message.getTime().toNSec());
+        stream->second->add(message, now);
       }
       for (auto& [name, pipeline] : streams)
         pipeline->expire(now);  // waiting measured in record time, as live on the wall clock

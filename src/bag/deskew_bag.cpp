@@ -27,12 +27,17 @@ extern "C" void onSignal(int /*signal*/) {
 void printUsage(std::FILE* to, const char* program) {
   std::fprintf(
       to,
-      "usage: %s IN.bag OUT.bag [--scan-topic T]... [--replace] [--compression none|bz2|lz4]\n"
+      "usage: %s IN.bag OUT.bag [--scan-topic T]... [--cloud-topic T]... [--replace]\n"
+      "          [--compression none|bz2|lz4]\n"
       "          [--consistency] [--consistency-figure CSV] [--quiet] [--PARAMETER VALUE]...\n"
       "\n"
-      "Corrects the LaserScans of IN.bag with the live node's pipeline; writes every message of IN.bag\n"
-      "as it was plus <topic>_deskewed (LaserScan) and <topic>_deskewed_points (PointCloud2).\n"
-      "  --scan-topic T      a topic to correct (repeatable); default: the bag's LaserScan topics\n"
+      "Corrects the LaserScans and PointCloud2s of IN.bag with the live nodes' pipeline; writes every\n"
+      "message of IN.bag as it was plus, for a scan, <topic>_deskewed (LaserScan) and\n"
+      "<topic>_deskewed_points (PointCloud2), for a cloud, <topic>_deskewed (PointCloud2).\n"
+      "  --scan-topic T      a LaserScan topic to correct (repeatable); default: the bag's LaserScan\n"
+      "                      topics (or, with none, its PointCloud2 topics)\n"
+      "  --cloud-topic T     a PointCloud2 topic to correct (repeatable); its per-point time field is\n"
+      "                      found alone (t, time, timestamp, time_stamp, offset_time, stamps)\n"
       "  --replace           corrected scan on T itself, the raw one on T_raw\n"
       "  --compression C     of OUT.bag: none (default), bz2 or lz4\n"
       "  --consistency       print how well consecutive scans agree while turning, raw and corrected\n"
@@ -87,12 +92,15 @@ int main(int argc, char** argv) {
       consistency = true;
     } else if (arg == "--quiet") {
       quiet = true;
-    } else if (arg == "--scan-topic" || arg == "--compression" || arg == "--consistency-figure") {
+    } else if (arg == "--scan-topic" || arg == "--cloud-topic" || arg == "--compression" ||
+               arg == "--consistency-figure") {
       if (!has_value)
         return usageError(argv[0], arg + " needs a value");
       const std::string value = argv[++a];
       if (arg == "--scan-topic") {
         options.scan_topics.push_back(value);
+      } else if (arg == "--cloud-topic") {
+        options.cloud_topics.push_back(value);
       } else if (arg == "--compression") {
         options.compression = value;
       } else {
@@ -161,6 +169,9 @@ int main(int argc, char** argv) {
       printCounters(topic, counters);
     if (consistency) {
       for (const std::string& topic : summary.chosen_topics) {
+        if (std::find(summary.cloud_topics.begin(), summary.cloud_topics.end(), topic) !=
+            summary.cloud_topics.end())
+          continue;  // the consistency measure is of planar scans
         const std::string corrected = options.replace ? topic : topic + "_deskewed";
         const std::string raw = options.replace ? topic + "_raw" : topic;
         const eval::ConsistencyReport report = eval::measureConsistency(

@@ -7,8 +7,10 @@
 #include <atomic>
 #include <cmath>
 #include <cstdio>
+#include <type_traits>
 
 #include "lidar_deskew/node/config_params.h"
+#include "lidar_deskew/ros/conversions.h"
 
 namespace lidar_deskew::node {
 namespace {
@@ -54,6 +56,12 @@ LogPolicy policyOf(PipelineEvent event) {
   return {Level::Warn, 1.0};
 }
 
+/// The input topic (remappable): `scan` or `points`.
+template <class Processor>
+const char* inputTopic() {
+  return std::is_same_v<Processor, ros_adapter::ScanProcessor> ? "scan" : "points";
+}
+
 /// [s] The clock scans wait on: ROS time when it is simulated (a paused or stepped `rosbag play
 /// --clock` stops the wait too), else the wall clock.
 double waitClock(const ros::WallTime& wall) {
@@ -93,21 +101,23 @@ std::string changes(const DeskewConfig& before, const DeskewConfig& after) {
 }  // namespace
 
 /// The server and the last config taken (what a refused change goes back to).
-struct LaserScanDeskewNode::Reconfigure {
+template <class Processor>
+struct DeskewNode<Processor>::Reconfigure {
   explicit Reconfigure(const ros::NodeHandle& private_nh) : server(private_nh) {}
   dynamic_reconfigure::Server<DeskewConfig> server;
   DeskewConfig taken;
   bool first = true;
 };
 
-LaserScanDeskewNode::LaserScanDeskewNode(ros::NodeHandle nh, ros::NodeHandle private_nh, std::string name)
+template <class Processor>
+DeskewNode<Processor>::DeskewNode(ros::NodeHandle nh, ros::NodeHandle private_nh, std::string name)
     : nh_(nh),
       private_nh_(private_nh),
       name_(std::move(name)),
       params_(ros_adapter::DeskewParams::load(private_nh)),
       input_queue_size_(params_.input_queue_size),
       pipeline_(
-          params_, [this](const ros_adapter::PipelineResult& result) { publish(result); },
+          params_, [this](const typename Pipeline::Result& result) { publish(result); },
           [this](PipelineEvent event, const std::string& text) { report(event, text); }) {
   last_diagnostics_ = last_tick_ = running_since_ = trigger_ = ros::WallTime::now();
   std::vector<std::string> given = ros_adapter::NodeHandleParams(private_nh_).names();
@@ -117,7 +127,7 @@ LaserScanDeskewNode::LaserScanDeskewNode(ros::NodeHandle nh, ros::NodeHandle pri
   private_nh_.setParam("diagnostic_period", params_.diagnostics_period);  // read by the Updater
   diagnostics_ = std::make_unique<diagnostic_updater::Updater>(nh_, private_nh_, name_);
   diagnostics_->setHardwareID("none");
-  diagnostics_->add(name_ + ": deskew", this, &LaserScanDeskewNode::produceDiagnostics);
+  diagnostics_->add(name_ + ": deskew", this, &DeskewNode::produceDiagnostics);
 
   // Absolute names on the node's own handle: in a nodelet, tf then arrives on the nodelet's queue.
   tf_subscriber_ = nh_.subscribe<tf2_msgs::TFMessage>(
@@ -134,10 +144,7 @@ LaserScanDeskewNode::LaserScanDeskewNode(ros::NodeHandle nh, ros::NodeHandle pri
       connectCallback();
     };
     // Named after the input as remapped (the bag tool's names): two instances never collide.
-    const std::string input = nh_.resolveName("scan");
-    scan_publisher_ = nh_.advertise<sensor_msgs::LaserScan>(input + "_deskewed", 10, connect, connect);
-    cloud_publisher_ =
-        nh_.advertise<ros_adapter::DeskewedCloud>(input + "_deskewed_points", 10, connect, connect);
+    advertiseOutputs(nh_.resolveName(inputTopic<Processor>()), connect);
   }
   // dynamic_reconfigure: the server reads the parameters as loaded above and calls back at once.
   reconfigure_ = std::make_unique<Reconfigure>(private_nh_);
@@ -162,51 +169,65 @@ LaserScanDeskewNode::LaserScanDeskewNode(ros::NodeHandle nh, ros::NodeHandle pri
     }
     reconfigure_->first = false;
   });
-  timer_ = nh_.createWallTimer(ros::WallDuration(kTimerPeriod), &LaserScanDeskewNode::timerCallback, this);
+  timer_ = nh_.createWallTimer(ros::WallDuration(kTimerPeriod), &DeskewNode::timerCallback, this);
   const std::string mode = params_.exact
                                ? "exact per-beam lookups"
                                : "knots every " + std::to_string(params_.deskew.knot_interval) + " s";
   const core::TimingConfig& timing = params_.timing;
+  std::string outputs;
+  for (const ros::Publisher& publisher : publishers_)
+    outputs += (outputs.empty() ? "" : " and ") + publisher.getTopic();
+  const std::string timed =
+      std::is_same_v<Processor, ros_adapter::ScanProcessor>
+          ? "stamp_at " + core::toString(timing.stamp_at) + ", scan_period " +
+                ros_adapter::formatNumber(timing.scan_period) + " s (when time_increment and scan_time are 0)"
+          : "time field " +
+                (params_.cloud_time.field.empty() ? std::string("found alone") : params_.cloud_time.field) +
+                " (unit " + params_.cloud_time.unit + ", base " + params_.cloud_time.base + ")";
   ROS_INFO(
-      "%s: %s -> %s and %s_points; fixed_frame %s, base_frame %s; stamp_at %s, scan_period %.4f s "
-      "(when time_increment and scan_time are 0); reference %s, %s; tf_timeout %.3f s, on_tf_failure %s",
-      name_.c_str(), nh_.resolveName("scan").c_str(), scan_publisher_.getTopic().c_str(),
-      scan_publisher_.getTopic().c_str(), params_.fixed_frame.c_str(), params_.base_frame.c_str(),
-      core::toString(timing.stamp_at).c_str(), timing.scan_period,
+      "%s: %s -> %s; fixed_frame %s, base_frame %s; %s; reference %s, %s; tf_timeout %.3f s, on_tf_failure "
+      "%s",
+      name_.c_str(), nh_.resolveName(inputTopic<Processor>()).c_str(), outputs.c_str(),
+      params_.fixed_frame.c_str(), params_.base_frame.c_str(), timed.c_str(),
       core::toString(params_.deskew.reference).c_str(), mode.c_str(), params_.tf_timeout,
       ros_adapter::toString(params_.on_tf_failure).c_str());
 }
 
-LaserScanDeskewNode::~LaserScanDeskewNode() {
+template <class Processor>
+DeskewNode<Processor>::~DeskewNode() {
   reconfigure_.reset();  // no reconfigure callback while members go away
   {
     // No connect callback may touch a publisher or subscribe while members go away.
     std::lock_guard<std::mutex> lock(connect_mutex_);
     shutting_down_ = true;
-    scan_publisher_.shutdown();
-    cloud_publisher_.shutdown();
+    for (ros::Publisher& publisher : publishers_)
+      publisher.shutdown();
   }
   timer_.stop();
-  scan_subscriber_.shutdown();
+  input_subscriber_.shutdown();
   tf_subscriber_.shutdown();
   tf_static_subscriber_.shutdown();
 }
 
-ros_adapter::DeskewParams LaserScanDeskewNode::params() const {
+template <class Processor>
+ros_adapter::DeskewParams DeskewNode<Processor>::params() const {
   std::lock_guard<std::mutex> lock(mutex_);
   return params_;
 }
 
-const void* LaserScanDeskewNode::lastPublishedCloud() {
+template <class Processor>
+const void* DeskewNode<Processor>::lastPublishedCloud() {
   return last_published_cloud.load();
 }
 
-double LaserScanDeskewNode::latencyP99() const {
+template <class Processor>
+double DeskewNode<Processor>::latencyP99() const {
   std::lock_guard<std::mutex> lock(mutex_);
   return latencyP99Locked();
 }
 
-double LaserScanDeskewNode::latencyP99Locked() const {
+template <class Processor>
+double DeskewNode<Processor>::latencyP99Locked() const {
   if (latencies_.empty())
     return 0.0;
   std::vector<double> sorted = latencies_;
@@ -215,32 +236,51 @@ double LaserScanDeskewNode::latencyP99Locked() const {
   return sorted[rank];
 }
 
-LaserScanDeskewNode::Counters LaserScanDeskewNode::counters() const {
+template <class Processor>
+typename DeskewNode<Processor>::Counters DeskewNode<Processor>::counters() const {
   std::lock_guard<std::mutex> lock(mutex_);
   return countersLocked();
 }
 
-LaserScanDeskewNode::Counters LaserScanDeskewNode::countersLocked() const {
+template <class Processor>
+typename DeskewNode<Processor>::Counters DeskewNode<Processor>::countersLocked() const {
   Counters counters = timing_;
   static_cast<ros_adapter::PipelineCounters&>(counters) = pipeline_.counters();
   return counters;
 }
 
-void LaserScanDeskewNode::connectCallback() {
-  std::lock_guard<std::mutex> lock(connect_mutex_);
-  if (shutting_down_)
-    return;
-  const bool wanted = scan_publisher_.getNumSubscribers() + cloud_publisher_.getNumSubscribers() > 0;
-  if (wanted && !scan_subscriber_) {
-    scan_subscriber_ =
-        nh_.subscribe<sensor_msgs::LaserScan>("scan", input_queue_size_, &LaserScanDeskewNode::scanCallback,
-                                              this, ros::TransportHints().tcpNoDelay());
-  } else if (!wanted && scan_subscriber_) {
-    scan_subscriber_.shutdown();
+template <class Processor>
+void DeskewNode<Processor>::advertiseOutputs(const std::string& input,
+                                             const ros::SubscriberStatusCallback& connect) {
+  if constexpr (std::is_same_v<Processor, ros_adapter::ScanProcessor>) {
+    publishers_ = {
+        nh_.advertise<sensor_msgs::LaserScan>(input + "_deskewed", 10, connect, connect),
+        nh_.advertise<ros_adapter::DeskewedCloud>(input + "_deskewed_points", 10, connect, connect)};
+  } else {
+    publishers_ = {nh_.advertise<sensor_msgs::PointCloud2>(input + "_deskewed", 10, connect, connect)};
   }
 }
 
-void LaserScanDeskewNode::scanCallback(const sensor_msgs::LaserScan::ConstPtr& message) {
+template <class Processor>
+void DeskewNode<Processor>::connectCallback() {
+  std::lock_guard<std::mutex> lock(connect_mutex_);
+  if (shutting_down_)
+    return;
+  std::uint32_t subscribers = 0;
+  for (const ros::Publisher& publisher : publishers_)
+    subscribers += publisher.getNumSubscribers();
+  const bool wanted = subscribers > 0;
+  if (wanted && !input_subscriber_) {
+    input_subscriber_ =
+        nh_.subscribe<Message>(inputTopic<Processor>(), input_queue_size_, &DeskewNode::inputCallback, this,
+                               ros::TransportHints().tcpNoDelay());
+  } else if (!wanted && input_subscriber_) {
+    input_subscriber_.shutdown();
+  }
+}
+
+template <class Processor>
+void DeskewNode<Processor>::inputCallback(const typename Message::ConstPtr& message) {
   const ros::WallTime arrival = ros::WallTime::now();
   std::lock_guard<std::mutex> lock(mutex_);
   trigger_ = arrival;
@@ -251,7 +291,8 @@ void LaserScanDeskewNode::scanCallback(const sensor_msgs::LaserScan::ConstPtr& m
   }
 }
 
-void LaserScanDeskewNode::tfCallback(const tf2_msgs::TFMessage::ConstPtr& message, bool is_static) {
+template <class Processor>
+void DeskewNode<Processor>::tfCallback(const tf2_msgs::TFMessage::ConstPtr& message, bool is_static) {
   const ros::WallTime arrival = ros::WallTime::now();
   std::lock_guard<std::mutex> lock(mutex_);
   trigger_ = arrival;
@@ -262,7 +303,8 @@ void LaserScanDeskewNode::tfCallback(const tf2_msgs::TFMessage::ConstPtr& messag
   }
 }
 
-void LaserScanDeskewNode::timerCallback(const ros::WallTimerEvent& /*event*/) {
+template <class Processor>
+void DeskewNode<Processor>::timerCallback(const ros::WallTimerEvent& /*event*/) {
   bool diagnostics_due = false;
   {
     std::lock_guard<std::mutex> lock(mutex_);
@@ -291,7 +333,8 @@ void LaserScanDeskewNode::timerCallback(const ros::WallTimerEvent& /*event*/) {
     diagnostics_->force_update();
 }
 
-void LaserScanDeskewNode::report(PipelineEvent event, const std::string& text) {
+template <class Processor>
+void DeskewNode<Processor>::report(PipelineEvent event, const std::string& text) {
   const LogPolicy policy = policyOf(event);
   const ros::WallTime now = ros::WallTime::now();
   const auto last = last_report_.find(event);
@@ -308,12 +351,18 @@ void LaserScanDeskewNode::report(PipelineEvent event, const std::string& text) {
   }
 }
 
-void LaserScanDeskewNode::publish(const ros_adapter::PipelineResult& result) {
+template <class Processor>
+void DeskewNode<Processor>::publish(const typename Pipeline::Result& result) {
   const ros::WallTime start = ros::WallTime::now();
   // Shared pointers, never touched after publishing: same-type subscribers in the manager get them as is.
-  scan_publisher_.publish(result.outputs.scan);
-  last_published_cloud.store(result.outputs.cloud.get());
-  cloud_publisher_.publish(result.outputs.cloud);
+  if constexpr (std::is_same_v<Processor, ros_adapter::ScanProcessor>) {
+    publishers_[0].publish(result.outputs.scan);
+    last_published_cloud.store(result.outputs.cloud.get());
+    publishers_[1].publish(result.outputs.cloud);
+  } else {
+    last_published_cloud.store(result.outputs.cloud.get());
+    publishers_[0].publish(result.outputs.cloud);
+  }
   if (!result.corrected)
     return;
   const ros::WallTime done = ros::WallTime::now();
@@ -330,7 +379,8 @@ void LaserScanDeskewNode::publish(const ros_adapter::PipelineResult& result) {
   timing_.processing_max = std::max(timing_.processing_max, processing);
 }
 
-void LaserScanDeskewNode::produceDiagnostics(diagnostic_updater::DiagnosticStatusWrapper& status) {
+template <class Processor>
+void DeskewNode<Processor>::produceDiagnostics(diagnostic_updater::DiagnosticStatusWrapper& status) {
   std::lock_guard<std::mutex> lock(mutex_);
   const Counters counters = countersLocked();
   const ros::WallTime now = ros::WallTime::now();
@@ -361,5 +411,8 @@ void LaserScanDeskewNode::produceDiagnostics(diagnostic_updater::DiagnosticStatu
   counters_at_last_diagnostics_ = counters;
   last_diagnostics_ = now;
 }
+
+template class DeskewNode<ros_adapter::ScanProcessor>;
+template class DeskewNode<ros_adapter::CloudProcessor>;
 
 }  // namespace lidar_deskew::node

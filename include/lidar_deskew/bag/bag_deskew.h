@@ -21,6 +21,9 @@ struct BagDeskewOptions {
   std::string output;
   /// Topics to correct; empty: the bag's LaserScan topics (BagDeskewSummary::chosen_topics says which).
   std::vector<std::string> scan_topics;
+  /// PointCloud2 topics to correct (per-point time fields: docs/DESIGN.md §7). When neither these nor
+  /// scan_topics are given and the bag has no LaserScan topic, its PointCloud2 topics.
+  std::vector<std::string> cloud_topics;
   /// Put the corrected LaserScan on the original topic and keep the raw one as <topic>_raw.
   bool replace = false;
   std::string compression = "none";  ///< of the output: none, bz2 or lz4
@@ -36,7 +39,8 @@ struct BagDeskewOptions {
 
 struct BagDeskewSummary {
   std::size_t messages = 0;                ///< messages copied from the input
-  std::vector<std::string> chosen_topics;  ///< the scan topics corrected
+  std::vector<std::string> chosen_topics;  ///< the topics corrected, scans then clouds
+  std::vector<std::string> cloud_topics;   ///< those of them that carry PointCloud2
   /// Per scan topic: the same counters as the node's diagnostics.
   std::map<std::string, ros_adapter::PipelineCounters> counters;
 };
@@ -58,5 +62,7 @@ BagDeskewSummary deskewBag(const BagDeskewOptions& options);
 
 /// The topics of `bag` that carry sensor_msgs/LaserScan, sorted.
 std::vector<std::string> laserScanTopics(rosbag::Bag& bag);
+/// The topics of `bag` that carry messages of `datatype` (e.g. "sensor_msgs/PointCloud2"), sorted.
+std::vector<std::string> topicsOfType(rosbag::Bag& bag, const std::string& datatype);
 
 }  // namespace lidar_deskew::bag

@@ -1,12 +1,13 @@
-// The live deskew: LaserScan in, corrected LaserScan and PCL cloud out, motion from tf2. One class
-// behind both the nodelet and the plain node; the work is ros_adapter::ScanPipeline's, shared with
-// deskew_bag. This class owns the ROS side: subscriptions, publishing, waiting on the wall clock,
-// diagnostics (docs/DESIGN.md).
+// The live deskew: LaserScan in, corrected LaserScan and PCL cloud out; or PointCloud2 in, corrected
+// PointCloud2 out; motion from tf2. One class template behind the nodelets and the plain nodes; the
+// work is ros_adapter::SweepPipeline's, shared with deskew_bag. This class owns the ROS side:
+// subscriptions, publishing, waiting on the wall clock, diagnostics (docs/DESIGN.md).
 #pragma once
 
 #include <diagnostic_updater/diagnostic_updater.h>
 #include <ros/ros.h>
 #include <sensor_msgs/LaserScan.h>
+#include <sensor_msgs/PointCloud2.h>
 #include <tf2_msgs/TFMessage.h>
 
 #include <map>
@@ -20,14 +21,20 @@
 
 namespace lidar_deskew::node {
 
-/// Subscribes to `scan` (remappable) while anyone subscribes to an output; publishes `scan_deskewed`
-/// (sensor_msgs/LaserScan on the input's grid) and `scan_deskewed_points` (PCL cloud of PointXYZITI),
-/// both in the scan's frame, stamped at the reference time. A scan waits, without blocking any
+/// Subscribes to its input (remappable: `scan` for ScanProcessor, `points` for CloudProcessor) while
+/// anyone subscribes to an output; publishes, named after the input as remapped, for scans
+/// `<scan>_deskewed` (sensor_msgs/LaserScan on the input's grid) and `<scan>_deskewed_points` (PCL cloud
+/// of PointXYZITI), for clouds `<points>_deskewed` (PointCloud2, the input's layout), all in the input's
+/// frame, stamped at the reference time. A scan waits, without blocking any
 /// callback, until tf covers its last beam, and is processed from the tf callback that brings it.
 /// The parameters marked reconfigurable (DeskewParams::reconfigurableNames) may change while it runs,
 /// through dynamic_reconfigure (cfg/Deskew.cfg). Thread-safe: callbacks may come from several threads.
-class LaserScanDeskewNode {
+template <class Processor>
+class DeskewNode {
  public:
+  using Message = typename Processor::Message;
+  using Pipeline = ros_adapter::SweepPipeline<Processor>;
+
   /// The pipeline's counters and the node's timing.
   struct Counters : ros_adapter::PipelineCounters {
     double tf_wait_total = 0.0;     ///< [s] arrival to "tf covers the last beam", summed
@@ -39,11 +46,11 @@ class LaserScanDeskewNode {
   /// Reads and validates the parameters (throws core::InvalidInput naming the bad one: nothing is
   /// advertised then), advertises the outputs and listens to /tf and /tf_static. `name` prefixes log
   /// lines and names the diagnostics.
-  LaserScanDeskewNode(ros::NodeHandle nh, ros::NodeHandle private_nh, std::string name);
-  ~LaserScanDeskewNode();
+  DeskewNode(ros::NodeHandle nh, ros::NodeHandle private_nh, std::string name);
+  ~DeskewNode();
 
-  LaserScanDeskewNode(const LaserScanDeskewNode&) = delete;
-  LaserScanDeskewNode& operator=(const LaserScanDeskewNode&) = delete;
+  DeskewNode(const DeskewNode&) = delete;
+  DeskewNode& operator=(const DeskewNode&) = delete;
 
   /// The parameters in force (dynamic_reconfigure changes some while running).
   ros_adapter::DeskewParams params() const;
@@ -58,13 +65,14 @@ class LaserScanDeskewNode {
 
  private:
   void connectCallback();
-  void scanCallback(const sensor_msgs::LaserScan::ConstPtr& message);
+  void inputCallback(const typename Message::ConstPtr& message);
+  void advertiseOutputs(const std::string& input, const ros::SubscriberStatusCallback& connect);
   void tfCallback(const tf2_msgs::TFMessage::ConstPtr& message, bool is_static);
   void timerCallback(const ros::WallTimerEvent& event);
   struct Reconfigure;  // the dynamic_reconfigure server, of the generated lidar_deskew::DeskewConfig
 
   // All below run with mutex_ held.
-  void publish(const ros_adapter::PipelineResult& result);
+  void publish(const typename Pipeline::Result& result);
   void report(ros_adapter::PipelineEvent event, const std::string& text);
   void produceDiagnostics(diagnostic_updater::DiagnosticStatusWrapper& status);
   double latencyP99Locked() const;
@@ -79,7 +87,7 @@ class LaserScanDeskewNode {
   mutable std::mutex mutex_;
   std::mutex connect_mutex_;
   bool shutting_down_ = false;  // guarded by connect_mutex_
-  ros_adapter::ScanPipeline pipeline_;
+  Pipeline pipeline_;
   Counters timing_;        // the timing fields only; the rest is the pipeline's
   ros::WallTime trigger_;  // the callback now serving scans
   std::map<ros_adapter::PipelineEvent, ros::WallTime> last_report_;  // for throttling
@@ -90,14 +98,18 @@ class LaserScanDeskewNode {
   ros::WallTime last_tick_;      // the timer's last run
   ros::WallTime running_since_;  // the end of the last stall of this process
 
-  ros::Publisher scan_publisher_;
-  ros::Publisher cloud_publisher_;
-  ros::Subscriber scan_subscriber_;
+  std::vector<ros::Publisher> publishers_;  // scans: the scan and its cloud; clouds: the cloud
+  ros::Subscriber input_subscriber_;
   ros::Subscriber tf_subscriber_;
   ros::Subscriber tf_static_subscriber_;
   ros::WallTimer timer_;
   std::unique_ptr<diagnostic_updater::Updater> diagnostics_;
   std::unique_ptr<Reconfigure> reconfigure_;
 };
+
+using LaserScanDeskewNode = DeskewNode<ros_adapter::ScanProcessor>;
+using PointCloudDeskewNode = DeskewNode<ros_adapter::CloudProcessor>;
+extern template class DeskewNode<ros_adapter::ScanProcessor>;
+extern template class DeskewNode<ros_adapter::CloudProcessor>;
 
 }  // namespace lidar_deskew::node
