@@ -1,15 +1,19 @@
-// deskew_simulate: writes a simulated recording of one of the paper's experiments as a ROS 1 bag, with
-// its ground-truth file.
+// deskew_simulate: writes a simulated recording as a ROS 1 bag, with its ground-truth file: one of the
+// paper's planar experiments (LaserScan), or a multi-line LIDAR sweep by sweep (PointCloud2 in a
+// driver's layout).
 //
-//   deskew_simulate --list
+//   deskew_simulate --list | --list-clouds | --list-conventions
 //   deskew_simulate --scenario UTM-30LX/high/arc --bag out.bag --truth out.truth [--noise] [--seed N]
 //                   [--tf-rate HZ] [--clockwise] [--duration S]
+//   deskew_simulate --cloud-scenario VLP16/rough/arc --convention velodyne_first --bag out.bag
+//                   --truth out.truth [--noise] [--seed N] [--tf-rate HZ] [--duration S] [--latency S]
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <exception>
 #include <string>
 
+#include "lidar_deskew/sim/cloud_bag.h"
 #include "lidar_deskew/sim/sim_bag.h"
 
 namespace {
@@ -17,10 +21,15 @@ namespace {
 int usage(const char* program) {
   std::fprintf(
       stderr,
-      "usage: %s --list\n"
+      "usage: %s --list | --list-clouds | --list-conventions\n"
       "       %s --scenario NAME --bag OUT.bag --truth OUT.truth [--noise] [--seed N] [--tf-rate HZ]\n"
-      "          [--clockwise]\n",
-      program, program);
+      "          [--clockwise] [--duration S]\n"
+      "       %s --cloud-scenario NAME --convention NAME --bag OUT.bag --truth OUT.truth [--noise]\n"
+      "          [--seed N] [--tf-rate HZ] [--duration S] [--latency S]\n"
+      "  --list              the planar scenarios (LaserScan on /scan)\n"
+      "  --list-clouds       the multi-line scenarios (PointCloud2 on /points, frame lidar)\n"
+      "  --list-conventions  the drivers' cloud layouts for --convention\n",
+      program, program, program);
   return 2;
 }
 
@@ -28,10 +37,11 @@ int usage(const char* program) {
 
 int main(int argc, char** argv) {
   using namespace lidar_deskew;
-  std::string scenario_name, bag_path, truth_path;
+  std::string scenario_name, cloud_scenario_name, convention_name, bag_path, truth_path;
   bool clockwise = false;
   double duration = 0.0;
   sim::SimBagOptions options;
+  sim::CloudBagOptions cloud_options;
   for (int a = 1; a < argc; ++a) {
     const std::string arg = argv[a];
     const bool has_value = a + 1 < argc;
@@ -39,14 +49,28 @@ int main(int argc, char** argv) {
       for (const sim::Scenario& scenario : sim::paperScenarios())
         std::printf("%s\n", scenario.name.c_str());
       return 0;
+    } else if (arg == "--list-clouds") {
+      for (const sim::CloudScenario& scenario : sim::cloudScenarios())
+        std::printf("%s\n", scenario.name.c_str());
+      return 0;
+    } else if (arg == "--list-conventions") {
+      for (const sim::CloudConvention convention : sim::allCloudConventions())
+        std::printf("%s\n", sim::cloudConventionName(convention).c_str());
+      return 0;
     } else if (arg == "--scenario" && has_value) {
       scenario_name = argv[++a];
+    } else if (arg == "--cloud-scenario" && has_value) {
+      cloud_scenario_name = argv[++a];
+    } else if (arg == "--convention" && has_value) {
+      convention_name = argv[++a];
     } else if (arg == "--bag" && has_value) {
       bag_path = argv[++a];
     } else if (arg == "--truth" && has_value) {
       truth_path = argv[++a];
     } else if (arg == "--duration" && has_value) {
       duration = std::atof(argv[++a]);
+    } else if (arg == "--latency" && has_value) {
+      cloud_options.latency = std::atof(argv[++a]);
     } else if (arg == "--clockwise") {
       clockwise = true;
     } else if (arg == "--noise") {
@@ -59,13 +83,27 @@ int main(int argc, char** argv) {
       return usage(argv[0]);
     }
   }
-  if (scenario_name.empty() || bag_path.empty() || truth_path.empty())
+  const bool cloud = !cloud_scenario_name.empty();
+  if (scenario_name.empty() == !cloud || bag_path.empty() || truth_path.empty())
+    return usage(argv[0]);
+  if (cloud && (convention_name.empty() || clockwise))
+    return usage(argv[0]);
+  if (!cloud && !convention_name.empty())
     return usage(argv[0]);
   if (!(options.tf_rate > 0.0)) {
     std::fprintf(stderr, "--tf-rate must be > 0 Hz\n");
     return 2;
   }
   try {
+    if (cloud) {
+      cloud_options.convention = sim::cloudConventionFromName(convention_name);
+      cloud_options.noise = options.noise;
+      cloud_options.seed = options.seed;
+      cloud_options.tf_rate = options.tf_rate;
+      cloud_options.duration = duration;
+      sim::writeCloudBag(sim::findCloudScenario(cloud_scenario_name), cloud_options, bag_path, truth_path);
+      return 0;
+    }
     sim::Scenario scenario = sim::findScenario(scenario_name);
     if (clockwise) {
       scenario = sim::clockwiseVariant(scenario);

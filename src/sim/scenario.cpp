@@ -1,10 +1,8 @@
 #include "lidar_deskew/sim/scenario.h"
 
-#include <fstream>
-#include <iomanip>
-#include <limits>
-#include <sstream>
 #include <stdexcept>
+
+#include "truth_text.h"
 
 namespace lidar_deskew::sim {
 namespace {
@@ -63,13 +61,7 @@ std::vector<Scenario> paperScenarios() {
 }
 
 Scenario findScenario(const std::string& name) {
-  std::string names;
-  for (const Scenario& scenario : paperScenarios()) {
-    if (scenario.name == name)
-      return scenario;
-    names += " " + scenario.name;
-  }
-  throw std::invalid_argument("unknown scenario '" + name + "'; known:" + names);
+  return truth_text::findByName(paperScenarios(), name, "scenario");
 }
 
 Scenario clockwiseVariant(Scenario scenario) {
@@ -83,70 +75,41 @@ Pose2 Truth::laserPose(core::TimeNs time) const {
 }
 
 void writeTruth(const Truth& truth, const std::string& path) {
-  std::ofstream out(path);
-  if (!out)
-    throw std::runtime_error("cannot write truth file " + path);
-  out << std::setprecision(std::numeric_limits<double>::max_digits10);
-  out << "# lidar_deskew simulation truth v1\n";
+  std::ofstream out = truth_text::create(path, "lidar_deskew simulation truth v1");
   out << "scenario " << truth.scenario << "\n";
   out << "epoch_ns " << truth.epoch << "\n";
   out << "range_sigma " << truth.range_sigma << "\n";
   out << "mount " << truth.mount.x << " " << truth.mount.y << " " << truth.mount.yaw << "\n";
-  out << "start " << truth.start.x << " " << truth.start.y << " " << truth.start.yaw << "\n";
-  for (const MotionPiece& piece : truth.pieces) {
-    out << "piece " << piece.duration << " " << piece.speed << " " << piece.acceleration << " "
-        << piece.yaw_rate << "\n";
-  }
+  truth_text::writeMotion(out, truth.start, truth.pieces);
   for (const Segment& segment : truth.world.segments()) {
     out << "wall " << segment.a.x() << " " << segment.a.y() << " " << segment.b.x() << " " << segment.b.y()
         << "\n";
   }
-  if (!out)
-    throw std::runtime_error("cannot write truth file " + path);
+  truth_text::finish(out, path);
 }
 
 Truth readTruth(const std::string& path) {
-  std::ifstream in(path);
-  if (!in)
-    throw std::runtime_error("cannot read truth file " + path);
   Truth truth;
-  std::string line;
-  int number = 0;
   bool has_epoch = false;
-  while (std::getline(in, line)) {
-    ++number;
-    if (line.empty() || line[0] == '#')
-      continue;
-    std::istringstream fields(line);
-    std::string key;
-    fields >> key;
-    bool ok = true;
+  truth_text::readLines(path, [&](const std::string& key, std::istringstream& fields) {
     if (key == "scenario") {
-      fields >> std::ws;
-      std::getline(fields, truth.scenario);
-    } else if (key == "epoch_ns") {
-      ok = static_cast<bool>(fields >> truth.epoch);
-      has_epoch = ok;
-    } else if (key == "range_sigma") {
-      ok = static_cast<bool>(fields >> truth.range_sigma);
-    } else if (key == "mount") {
-      ok = static_cast<bool>(fields >> truth.mount.x >> truth.mount.y >> truth.mount.yaw);
-    } else if (key == "start") {
-      ok = static_cast<bool>(fields >> truth.start.x >> truth.start.y >> truth.start.yaw);
-    } else if (key == "piece") {
-      MotionPiece piece;
-      ok = static_cast<bool>(fields >> piece.duration >> piece.speed >> piece.acceleration >> piece.yaw_rate);
-      truth.pieces.push_back(piece);
-    } else if (key == "wall") {
-      double ax, ay, bx, by;
-      ok = static_cast<bool>(fields >> ax >> ay >> bx >> by);
-      truth.world.add({ax, ay}, {bx, by});
-    } else {
-      ok = false;
+      truth.scenario = truth_text::rest(fields);
+      return true;
     }
-    if (!ok)
-      throw std::runtime_error(path + ":" + std::to_string(number) + ": malformed line '" + line + "'");
-  }
+    if (key == "epoch_ns")
+      return has_epoch = static_cast<bool>(fields >> truth.epoch);
+    if (key == "range_sigma")
+      return static_cast<bool>(fields >> truth.range_sigma);
+    if (key == "mount")
+      return static_cast<bool>(fields >> truth.mount.x >> truth.mount.y >> truth.mount.yaw);
+    if (key == "wall") {
+      double ax, ay, bx, by;
+      const bool ok = static_cast<bool>(fields >> ax >> ay >> bx >> by);
+      truth.world.add({ax, ay}, {bx, by});
+      return ok;
+    }
+    return truth_text::readMotion(key, fields, &truth.start, &truth.pieces);
+  });
   if (!has_epoch || truth.pieces.empty() || truth.world.segments().empty()) {
     throw std::runtime_error(path + ": not a truth file (needs epoch_ns, piece and wall lines)");
   }

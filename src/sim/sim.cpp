@@ -49,20 +49,35 @@ void World::addPolygon(const std::vector<Eigen::Vector2d>& corners) {
     add(corners[i], corners[(i + 1) % corners.size()]);
 }
 
+std::optional<double> raySegmentRange(const Eigen::Vector2d& origin, const Eigen::Vector2d& direction,
+                                      const Segment& segment) {
+  // origin + r direction = a + u (b - a)
+  const Eigen::Vector2d edge = segment.b - segment.a;
+  const double denominator = cross(direction, edge);
+  if (denominator == 0.0)
+    return std::nullopt;
+  const Eigen::Vector2d to_a = segment.a - origin;
+  const double range = cross(to_a, edge) / denominator;
+  const double u = cross(to_a, direction) / denominator;
+  if (range > 0.0 && u >= 0.0 && u <= 1.0)
+    return range;
+  return std::nullopt;
+}
+
+double distanceToSegment(const Eigen::Vector2d& point, const Segment& segment) {
+  const Eigen::Vector2d edge = segment.b - segment.a;
+  const double u = std::clamp((point - segment.a).dot(edge) / edge.squaredNorm(), 0.0, 1.0);
+  return (segment.a + u * edge - point).norm();
+}
+
 std::optional<World::Hit> World::castRayHit(const Eigen::Vector2d& origin,
                                             const Eigen::Vector2d& direction) const {
   std::optional<Hit> nearest;
   for (const Segment& segment : segments_) {
-    // origin + r direction = a + u (b - a)
-    const Eigen::Vector2d edge = segment.b - segment.a;
-    const double denominator = cross(direction, edge);
-    if (denominator == 0.0)
-      continue;
-    const Eigen::Vector2d to_a = segment.a - origin;
-    const double range = cross(to_a, edge) / denominator;
-    const double u = cross(to_a, direction) / denominator;
-    if (range > 0.0 && u >= 0.0 && u <= 1.0 && (!nearest || range < nearest->range)) {
-      nearest = Hit{range, Eigen::Vector2d(-edge.y(), edge.x()).normalized()};
+    const std::optional<double> range = raySegmentRange(origin, direction, segment);
+    if (range && (!nearest || *range < nearest->range)) {
+      const Eigen::Vector2d edge = segment.b - segment.a;
+      nearest = Hit{*range, Eigen::Vector2d(-edge.y(), edge.x()).normalized()};
     }
   }
   return nearest;
@@ -75,28 +90,21 @@ std::optional<double> World::castRay(const Eigen::Vector2d& origin, const Eigen:
 
 double World::distanceTo(const Eigen::Vector2d& point) const {
   double nearest = std::numeric_limits<double>::infinity();
-  for (const Segment& segment : segments_) {
-    const Eigen::Vector2d edge = segment.b - segment.a;
-    const double u = std::clamp((point - segment.a).dot(edge) / edge.squaredNorm(), 0.0, 1.0);
-    nearest = std::min(nearest, (segment.a + u * edge - point).norm());
-  }
+  for (const Segment& segment : segments_)
+    nearest = std::min(nearest, distanceToSegment(point, segment));
   return nearest;
+}
+
+std::vector<Eigen::Vector2d> World::hallOutline() {
+  // Counter-clockwise from the south-west corner; the corridor leaves the north wall between x = 4 and
+  // 6.4 m and runs 6 m north; the east end is slanted.
+  return {{-20.0, -5.0}, {17.0, -5.0}, {20.0, -2.0}, {20.0, 5.0},  {6.4, 5.0},
+          {6.4, 11.0},   {4.0, 11.0},  {4.0, 5.0},   {-17.0, 5.0}, {-20.0, 1.5}};
 }
 
 World World::hall() {
   World world;
-  // Outer walls, counter-clockwise from the south-west corner; the corridor leaves the north wall
-  // between x = 4 and 6.4 m and runs 6 m north; the east end is slanted.
-  world.addPolygon({{-20.0, -5.0},
-                    {17.0, -5.0},
-                    {20.0, -2.0},
-                    {20.0, 5.0},
-                    {6.4, 5.0},
-                    {6.4, 11.0},
-                    {4.0, 11.0},
-                    {4.0, 5.0},
-                    {-17.0, 5.0},
-                    {-20.0, 1.5}});
+  world.addPolygon(hallOutline());
   // Square pillars along the hall and a wall at 30 deg.
   for (const double x : {-12.0, -4.0, 8.0}) {
     world.addPolygon({{x, -2.8}, {x + 0.5, -2.8}, {x + 0.5, -2.3}, {x, -2.3}});

@@ -45,6 +45,13 @@ struct Segment {
   Eigen::Vector2d b;
 };
 
+/// Where the ray origin + r direction crosses `segment`: r (in units of |direction|), if it does at
+/// r > 0 (a ray parallel to the segment never does).
+std::optional<double> raySegmentRange(const Eigen::Vector2d& origin, const Eigen::Vector2d& direction,
+                                      const Segment& segment);
+/// Distance [m] from `point` to the nearest point of `segment`.
+double distanceToSegment(const Eigen::Vector2d& point, const Segment& segment);
+
 /// A 2D world of line segments.
 class World {
  public:
@@ -69,6 +76,8 @@ class World {
   /// The paper experiments' world: a 40 x 10 m hall (x from -20 to 20 m) with walls at several angles,
   /// pillars and a 2.4 m wide corridor leaving it, so a robot can drive 8 m at 6 m/s in it.
   static World hall();
+  /// The hall's outer walls as one closed polygon, counter-clockwise (its first segments).
+  static std::vector<Eigen::Vector2d> hallOutline();
 
  private:
   std::vector<Segment> segments_;

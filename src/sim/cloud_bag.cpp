@@ -1,0 +1,321 @@
+#include "lidar_deskew/sim/cloud_bag.h"
+
+#include <rosbag/bag.h>
+#include <tf2_msgs/TFMessage.h>
+
+#include <cmath>
+#include <cstring>
+#include <random>
+#include <stdexcept>
+
+#include "lidar_deskew/ros/conversions.h"
+
+namespace lidar_deskew::sim {
+namespace {
+
+using ros_adapter::toRosTime;
+using sensor_msgs::PointField;
+
+constexpr float kIntensity = 100.0f;
+
+struct Field {
+  const char* name;
+  std::uint32_t offset;
+  std::uint8_t datatype;
+};
+
+/// The fields beyond x, y, z and the point step of each convention (cloud_bag.h's table).
+struct Layout {
+  std::vector<Field> fields;
+  std::uint32_t point_step;
+};
+
+Layout layoutOf(CloudConvention convention) {
+  switch (convention) {
+    case CloudConvention::kOuster:
+      return {{{"intensity", 16, PointField::FLOAT32},
+               {"t", 20, PointField::UINT32},
+               {"reflectivity", 24, PointField::UINT16},
+               {"ring", 26, PointField::UINT16},
+               {"ambient", 28, PointField::UINT16},
+               {"range", 32, PointField::UINT32}},
+              48};
+    case CloudConvention::kVelodyneFirst:
+    case CloudConvention::kVelodyneLast:
+      return {{{"intensity", 12, PointField::FLOAT32},
+               {"ring", 16, PointField::UINT16},
+               {"time", 18, PointField::FLOAT32}},
+              22};
+    case CloudConvention::kHesai:
+      return {{{"intensity", 16, PointField::FLOAT32},
+               {"timestamp", 24, PointField::FLOAT64},
+               {"ring", 32, PointField::UINT16}},
+              48};
+    case CloudConvention::kRoboSense:
+      return {{{"intensity", 16, PointField::FLOAT32},
+               {"ring", 20, PointField::UINT16},
+               {"timestamp", 24, PointField::FLOAT64}},
+              32};
+    case CloudConvention::kLivox2:
+      return {{{"intensity", 12, PointField::FLOAT32},
+               {"tag", 16, PointField::UINT8},
+               {"line", 17, PointField::UINT8},
+               {"timestamp", 18, PointField::FLOAT64}},
+              26};
+    case CloudConvention::kAutoware:
+      return {{{"intensity", 12, PointField::FLOAT32},
+               {"ring", 16, PointField::UINT16},
+               {"time_stamp", 20, PointField::UINT32}},
+              24};
+    case CloudConvention::kLivoxCustom:
+      return {{{"reflectivity", 12, PointField::FLOAT32},
+               {"tag", 16, PointField::UINT8},
+               {"line", 17, PointField::UINT8},
+               {"offset_time", 20, PointField::UINT32}},
+              24};
+    case CloudConvention::kLaserGeometry:
+      return {{{"intensity", 12, PointField::FLOAT32}, {"stamps", 16, PointField::FLOAT32}}, 20};
+  }
+  throw std::invalid_argument("unknown cloud convention");
+}
+
+template <typename T>
+void put(std::uint8_t* point, std::uint32_t offset, T value) {
+  std::memcpy(point + offset, &value, sizeof(T));
+}
+
+/// Absolute bag time [ns] of a time t [s] on the simulation clock.
+core::TimeNs bagTime(core::TimeNs epoch, double t) {
+  return epoch + core::secondsToNs(t);
+}
+
+geometry_msgs::TransformStamped stamped(const std::string& parent, const std::string& child,
+                                        core::TimeNs time, const Pose3& pose) {
+  geometry_msgs::TransformStamped transform;
+  transform.header.frame_id = parent;
+  transform.header.stamp = toRosTime(time);
+  transform.child_frame_id = child;
+  transform.transform.translation.x = pose.position.x();
+  transform.transform.translation.y = pose.position.y();
+  transform.transform.translation.z = pose.position.z();
+  const Eigen::Quaterniond rotation = pose.quaternion();
+  transform.transform.rotation.x = rotation.x();
+  transform.transform.rotation.y = rotation.y();
+  transform.transform.rotation.z = rotation.z();
+  transform.transform.rotation.w = rotation.w();
+  return transform;
+}
+
+}  // namespace
+
+const std::vector<CloudConvention>& allCloudConventions() {
+  static const std::vector<CloudConvention> conventions = {
+      CloudConvention::kOuster,   CloudConvention::kVelodyneFirst, CloudConvention::kVelodyneLast,
+      CloudConvention::kHesai,    CloudConvention::kRoboSense,     CloudConvention::kLivox2,
+      CloudConvention::kAutoware, CloudConvention::kLivoxCustom,   CloudConvention::kLaserGeometry};
+  return conventions;
+}
+
+std::string cloudConventionName(CloudConvention convention) {
+  switch (convention) {
+    case CloudConvention::kOuster:
+      return "ouster";
+    case CloudConvention::kVelodyneFirst:
+      return "velodyne_first";
+    case CloudConvention::kVelodyneLast:
+      return "velodyne_last";
+    case CloudConvention::kHesai:
+      return "hesai";
+    case CloudConvention::kRoboSense:
+      return "robosense";
+    case CloudConvention::kLivox2:
+      return "livox2";
+    case CloudConvention::kAutoware:
+      return "autoware";
+    case CloudConvention::kLivoxCustom:
+      return "livox_custom";
+    case CloudConvention::kLaserGeometry:
+      return "laser_geometry";
+  }
+  throw std::invalid_argument("unknown cloud convention");
+}
+
+CloudConvention cloudConventionFromName(const std::string& name) {
+  std::string names;
+  for (const CloudConvention convention : allCloudConventions()) {
+    if (cloudConventionName(convention) == name)
+      return convention;
+    names += " " + cloudConventionName(convention);
+  }
+  throw std::invalid_argument("unknown cloud convention '" + name + "'; known:" + names);
+}
+
+std::string cloudTimeField(CloudConvention convention) {
+  for (const Field& field : layoutOf(convention).fields) {
+    const std::string name = field.name;
+    if (name == "t" || name == "time" || name == "timestamp" || name == "time_stamp" ||
+        name == "offset_time" || name == "stamps")
+      return name;
+  }
+  throw std::invalid_argument("cloud convention without a time field");
+}
+
+sensor_msgs::PointCloud2 toPointCloud2(const SimulatedCloud& sweep, CloudConvention convention,
+                                       core::TimeNs epoch, const std::string& frame_id, std::uint32_t seq) {
+  const bool organized = isOrganized(convention);
+  if (sweep.organized != organized) {
+    throw std::invalid_argument("toPointCloud2: convention " + cloudConventionName(convention) + " needs " +
+                                (organized ? "an organized" : "a dense") + " sweep");
+  }
+  if (sweep.points.empty())
+    throw std::invalid_argument("toPointCloud2: an empty sweep has no first point to stamp with");
+  const Layout layout = layoutOf(convention);
+  sensor_msgs::PointCloud2 cloud;
+  cloud.header.seq = seq;
+  cloud.header.frame_id = frame_id;
+  // The stamp on the simulation clock [s]: sweep start, first or last point; on whole nanoseconds,
+  // rounded down (start, first) or up (last), so that relative times never change sign.
+  const bool stamp_at_last =
+      convention == CloudConvention::kVelodyneLast || convention == CloudConvention::kRoboSense;
+  double stamp_time = stamp_at_last ? sweep.points.back().time : sweep.points.front().time;
+  if (convention == CloudConvention::kOuster)
+    stamp_time = sweep.start_time;
+  const double stamp_ns = stamp_time * 1e9;
+  const core::TimeNs stamp =
+      epoch + static_cast<core::TimeNs>(stamp_at_last ? std::ceil(stamp_ns) : std::floor(stamp_ns));
+  cloud.header.stamp = toRosTime(stamp);
+  const double stamp_on_clock = core::nsToSeconds(stamp - epoch);  // exactly the stamp written
+
+  for (const char* axis : {"x", "y", "z"}) {
+    PointField field;
+    field.name = axis;
+    field.offset = static_cast<std::uint32_t>(4 * cloud.fields.size());
+    field.datatype = PointField::FLOAT32;
+    field.count = 1;
+    cloud.fields.push_back(field);
+  }
+  for (const Field& entry : layout.fields) {
+    PointField field;
+    field.name = entry.name;
+    field.offset = entry.offset;
+    field.datatype = entry.datatype;
+    field.count = 1;
+    cloud.fields.push_back(field);
+  }
+  cloud.height = organized ? static_cast<std::uint32_t>(sweep.rings) : 1;
+  cloud.width = static_cast<std::uint32_t>(sweep.points.size()) / cloud.height;
+  cloud.is_bigendian = false;
+  cloud.point_step = layout.point_step;
+  cloud.row_step = cloud.point_step * cloud.width;
+  cloud.is_dense = !organized;  // Ouster's zeros are no NaNs, but ouster-ros says false: so do we
+  cloud.data.assign(static_cast<std::size_t>(cloud.row_step) * cloud.height, 0);
+
+  const core::TimeNs epoch_seconds = epoch / 1'000'000'000;
+  const double epoch_fraction = core::nsToSeconds(epoch % 1'000'000'000);
+  for (std::size_t i = 0; i < sweep.points.size(); ++i) {
+    const SimulatedPoint& point = sweep.points[i];
+    std::uint8_t* out = cloud.data.data() + i * cloud.point_step;
+    put(out, 0, static_cast<float>(point.position.x()));
+    put(out, 4, static_cast<float>(point.position.y()));
+    put(out, 8, static_cast<float>(point.position.z()));
+    const double relative = point.time - stamp_on_clock;  // [s]
+    const auto relative_ns = static_cast<std::uint32_t>(std::llround(relative * 1e9));
+    const float intensity = point.is_return ? kIntensity : 0.0f;
+    const auto ring = static_cast<std::uint16_t>(point.ring);
+    for (const Field& field : layout.fields) {
+      const std::string name = field.name;
+      if (name == "intensity" || name == "reflectivity") {
+        if (field.datatype == PointField::FLOAT32)
+          put(out, field.offset, intensity);
+        else
+          put(out, field.offset, static_cast<std::uint16_t>(intensity));
+      } else if (name == "ring" || name == "line") {
+        if (field.datatype == PointField::UINT16)
+          put(out, field.offset, ring);
+        else
+          put(out, field.offset, static_cast<std::uint8_t>(point.ring));
+      } else if (name == "range") {  // Ouster: [mm]
+        put(out, field.offset, static_cast<std::uint32_t>(std::llround(point.range * 1e3)));
+      } else if (name == "t" || name == "time_stamp" || name == "offset_time") {
+        put(out, field.offset, relative_ns);
+      } else if (name == "time" || name == "stamps") {
+        put(out, field.offset, static_cast<float>(relative));
+      } else if (name == "timestamp" && convention == CloudConvention::kLivox2) {  // absolute [ns]
+        put(out, field.offset, static_cast<double>(bagTime(epoch, point.time)));
+      } else if (name == "timestamp") {  // absolute [s]
+        put(out, field.offset, static_cast<double>(epoch_seconds) + (epoch_fraction + point.time));
+      }
+      // tag, ambient: 0
+    }
+  }
+  return cloud;
+}
+
+void writeCloudBag(const CloudScenario& scenario, const CloudBagOptions& options, const std::string& bag_path,
+                   const std::string& truth_path) {
+  if (!(options.tf_rate > 0.0))
+    throw std::invalid_argument("writeCloudBag: tf_rate must be > 0 Hz");
+  CloudScenario run = scenario;
+  if (options.duration > 0.0)
+    run.duration = options.duration;
+  run.lidar.organized = isOrganized(options.convention);
+  const std::shared_ptr<const Trajectory3> trajectory = run.trajectory();
+  const World3 world = World3::hall();
+  const std::vector<double> sweep_starts = run.sweepStartTimes();
+  if (sweep_starts.empty())
+    throw std::invalid_argument("writeCloudBag: the duration holds no sweep");
+  const core::TimeNs epoch = options.epoch;
+  const auto at = [&](double t) { return bagTime(epoch, t); };
+
+  rosbag::Bag bag(bag_path, rosbag::bagmode::Write);
+
+  const double tf_begin = sweep_starts.front() - 0.1;
+  const double tf_end = sweep_starts.back() + run.lidar.sweepPeriod() + 0.1;
+  tf2_msgs::TFMessage static_transforms;
+  static_transforms.transforms.push_back(
+      stamped(options.base_frame, options.lidar_frame, at(tf_begin), run.mount));
+  bag.write("/tf_static", toRosTime(at(tf_begin)), static_transforms);
+
+  const long tf_samples = std::lround(std::floor((tf_end - tf_begin) * options.tf_rate + 1e-9));
+  const auto tfTime = [&](long k) { return tf_begin + static_cast<double>(k) / options.tf_rate; };
+  const auto writeTf = [&](long k) {
+    const double t = tfTime(k);
+    tf2_msgs::TFMessage transforms;
+    transforms.transforms.push_back(
+        stamped(options.fixed_frame, options.base_frame, at(t), trajectory->pose(t)));
+    bag.write("/tf", toRosTime(at(t)), transforms);
+  };
+
+  // Written in time order, as a recorder does.
+  std::mt19937 rng(options.seed);
+  long next_tf = 0;
+  for (std::size_t k = 0; k < sweep_starts.size(); ++k) {
+    const SimulatedCloud sweep = simulateSweep(world, *trajectory, run.mount, run.lidar, sweep_starts[k],
+                                               options.noise ? &rng : nullptr);
+    const double record_time = sweep.end_time + options.latency;
+    while (next_tf <= tf_samples && tfTime(next_tf) <= record_time)
+      writeTf(next_tf++);
+    bag.write(
+        options.cloud_topic, toRosTime(at(record_time)),
+        toPointCloud2(sweep, options.convention, epoch, options.lidar_frame, static_cast<std::uint32_t>(k)));
+  }
+  while (next_tf <= tf_samples)
+    writeTf(next_tf++);
+  bag.close();
+
+  CloudTruth truth;
+  truth.scenario = run.name;
+  truth.world = world.name();
+  truth.sensor = run.lidar.name;
+  truth.convention = cloudConventionName(options.convention);
+  truth.epoch = epoch;
+  truth.range_sigma = options.noise ? run.lidar.range_sigma : 0.0;
+  truth.mount = run.mount;
+  truth.start = run.start;
+  truth.pieces = run.pieces;
+  truth.rough = run.rough;
+  truth.sweep_start_times = sweep_starts;
+  writeCloudTruth(truth, truth_path);
+}
+
+}  // namespace lidar_deskew::sim
