@@ -37,6 +37,8 @@ for path in \
   share/lidar_deskew/data/neato_xv11/NOTICE \
   lib/liblidar_deskew_nodelets.so \
   lib/lidar_deskew/deskew_node \
+  lib/lidar_deskew/deskew_cloud_node \
+  share/lidar_deskew/launch/deskew_cloud.launch \
   lib/lidar_deskew/deskew_bag \
   share/lidar_deskew/cmake/lidar_deskewConfig.cmake; do
   if [ -e "$prefix/$path" ]; then echo "ok      $path"; else echo "MISSING $path"; status=1; fi
