@@ -42,10 +42,12 @@ void writeOutputs(rosbag::Bag& output, const std::string& topic, bool replace, c
   output.write(topic + "_deskewed_points", time, *outputs.cloud);
 }
 
-/// The output of a cloud: the corrected cloud.
+/// The outputs of a cloud: the corrected cloud, and its planar scan with cloud_scan.
 void writeOutputs(rosbag::Bag& output, const std::string& topic, bool replace, const ros::Time& time,
                   const ros_adapter::CloudOutputs& outputs) {
   output.write(replace ? topic : topic + "_deskewed", time, *outputs.cloud);
+  if (outputs.scan)
+    output.write(topic + "_deskewed_scan", time, *outputs.scan);
 }
 
 /// One topic to correct and its pipeline.

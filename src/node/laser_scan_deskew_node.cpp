@@ -258,6 +258,9 @@ void DeskewNode<Processor>::advertiseOutputs(const std::string& input,
         nh_.advertise<ros_adapter::DeskewedCloud>(input + "_deskewed_points", 10, connect, connect)};
   } else {
     publishers_ = {nh_.advertise<sensor_msgs::PointCloud2>(input + "_deskewed", 10, connect, connect)};
+    if (params_.cloud_scan.enabled)
+      publishers_.push_back(
+          nh_.advertise<sensor_msgs::LaserScan>(input + "_deskewed_scan", 10, connect, connect));
   }
 }
 
@@ -362,6 +365,8 @@ void DeskewNode<Processor>::publish(const typename Pipeline::Result& result) {
   } else {
     last_published_cloud.store(result.outputs.cloud.get());
     publishers_[0].publish(result.outputs.cloud);
+    if (result.outputs.scan && publishers_.size() > 1)
+      publishers_[1].publish(result.outputs.scan);
   }
   if (!result.corrected)
     return;

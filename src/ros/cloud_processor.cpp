@@ -55,6 +55,11 @@ CloudProcessor::CloudProcessor(const DeskewParams& params)
     : params_(params), time_config_(params.cloud_time), deskewer_(params.deskew) {
   time_config_.max_sweep_duration = params.timing.max_sweep_duration;
   time_config_.validate();
+  // The planar scan's band and grid, pairwise (each bound alone is checked with the parameters).
+  if (params.cloud_scan.height_max < params.cloud_scan.height_min)
+    throw core::InvalidInput("scan_height_max", "must not be below scan_height_min");
+  if (params.cloud_scan.angle_max <= params.cloud_scan.angle_min)
+    throw core::InvalidInput("scan_angle_max", "must be above scan_angle_min");
 }
 
 PreparedCloud CloudProcessor::prepare(const sensor_msgs::PointCloud2::ConstPtr& message) const {
@@ -130,11 +135,50 @@ CloudOutputs CloudProcessor::correct(const PreparedCloud& prepared, const mrpt::
     writeNumber(point + z.offset, z.datatype, corrected_[k].z());
     writeNumber(point + time.offset, time.datatype, time_value);
   }
-  return {output};
+  CloudOutputs outputs;
+  outputs.cloud = output;
+  if (params_.cloud_scan.enabled)
+    outputs.scan = planarScan(corrected_, output->header);
+  return outputs;
 }
 
 CloudOutputs CloudProcessor::passThrough(const PreparedCloud& prepared) const {
-  return {prepared.message};
+  CloudOutputs outputs;
+  outputs.cloud = prepared.message;
+  if (params_.cloud_scan.enabled)
+    outputs.scan = planarScan(prepared.points, prepared.message->header);  // the raw points
+  return outputs;
+}
+
+sensor_msgs::LaserScan::ConstPtr CloudProcessor::planarScan(const std::vector<Eigen::Vector3d>& points,
+                                                            const std_msgs::Header& header) const {
+  const DeskewParams::CloudScan& band = params_.cloud_scan;
+  auto scan = boost::make_shared<sensor_msgs::LaserScan>();
+  scan->header = header;
+  scan->angle_min = static_cast<float>(band.angle_min);
+  scan->angle_increment = static_cast<float>(band.angle_increment);
+  const auto bins =
+      static_cast<std::size_t>(std::floor((band.angle_max - band.angle_min) / band.angle_increment)) + 1;
+  scan->angle_max = static_cast<float>(band.angle_min + (bins - 1) * band.angle_increment);
+  scan->time_increment = 0.0f;  // every point refers to the stamp
+  scan->scan_time = 0.0f;
+  scan->range_min = 0.0f;
+  scan->range_max = static_cast<float>(band.range_max);
+  scan->ranges.assign(bins, std::numeric_limits<float>::infinity());
+  for (const Eigen::Vector3d& point : points) {
+    if (!point.allFinite() || point.z() < band.height_min || point.z() > band.height_max)
+      continue;
+    const double range = std::hypot(point.x(), point.y());
+    if (range > band.range_max || range == 0.0)
+      continue;
+    // The nearest point on each bin's ray (pointcloud_to_laserscan's rule, after the correction).
+    const double bin = std::round((std::atan2(point.y(), point.x()) - band.angle_min) / band.angle_increment);
+    if (bin < 0.0 || bin >= static_cast<double>(bins))
+      continue;
+    float& kept = scan->ranges[static_cast<std::size_t>(bin)];
+    kept = std::min(kept, static_cast<float>(range));
+  }
+  return scan;
 }
 
 }  // namespace lidar_deskew::ros_adapter

@@ -38,6 +38,20 @@ const ParamSpec kSpecs[] = {
      "clouds: unit of the time field; auto = decided from its values"},
     {"time_base", "string", "auto", "", kNoBound, kNoBound, false, "auto|header|absolute", false, false,
      "clouds: time values are offsets from header.stamp or absolute; auto = decided from its values"},
+    {"cloud_scan", "bool", "false", "", kNoBound, kNoBound, false, "", false, false,
+     "clouds: also a planar LaserScan <points>_deskewed_scan of the corrected points in the height band"},
+    {"scan_height_min", "double", "-0.1", "m", -100.0, 100.0, false, "", false, true,
+     "clouds: the band's lowest z in the cloud's frame"},
+    {"scan_height_max", "double", "0.1", "m", -100.0, 100.0, false, "", false, true,
+     "clouds: the band's highest z in the cloud's frame"},
+    {"scan_angle_min", "double", "-3.14159", "rad", -3.15, 3.15, false, "", false, true,
+     "clouds: the planar scan's first bearing"},
+    {"scan_angle_max", "double", "3.14159", "rad", -3.15, 3.15, false, "", false, true,
+     "clouds: the planar scan's last bearing"},
+    {"scan_angle_increment", "double", "0.00436332", "rad", 1e-5, 1.0, false, "", false, true,
+     "clouds: the planar scan's bin width (0.25 deg)"},
+    {"scan_range_max", "double", "100.0", "m", 0.0, 10000.0, true, "", false, true,
+     "clouds: the planar scan's range_max; farther points are left out"},
     {"knot_interval", "double", "0.005", "s", 1e-5, 1.0, false, "", false, false,
      "spacing of tf lookups across the sweep (plus tf's own sample times)"},
     {"exact", "bool", "false", "", kNoBound, kNoBound, false, "", false, false,
@@ -184,6 +198,13 @@ DeskewParams DeskewParams::load(const ParamSource& source, const DeskewParams& b
     checkChoice("time_base", text);
     params.cloud_time.base = text;
   }
+  source.get("cloud_scan", params.cloud_scan.enabled);
+  source.get("scan_height_min", params.cloud_scan.height_min);
+  source.get("scan_height_max", params.cloud_scan.height_max);
+  source.get("scan_angle_min", params.cloud_scan.angle_min);
+  source.get("scan_angle_max", params.cloud_scan.angle_max);
+  source.get("scan_angle_increment", params.cloud_scan.angle_increment);
+  source.get("scan_range_max", params.cloud_scan.range_max);
   source.get("knot_interval", params.deskew.knot_interval);
   source.get("exact", params.exact);
   if (params.exact)
@@ -247,6 +268,12 @@ void DeskewParams::validate() const {
   checkNumber("rebin_min_gap", rebin.min_gap);
   checkNumber("rebin_gap_factor", rebin.gap_factor);
   checkNumber("diagnostics_period", diagnostics_period);
+  checkNumber("scan_height_min", cloud_scan.height_min);
+  checkNumber("scan_height_max", cloud_scan.height_max);
+  checkNumber("scan_angle_min", cloud_scan.angle_min);
+  checkNumber("scan_angle_max", cloud_scan.angle_max);
+  checkNumber("scan_angle_increment", cloud_scan.angle_increment);
+  checkNumber("scan_range_max", cloud_scan.range_max);
   // The core's own checks (the same bounds or wider).
   timing.validate();
   deskew.validate();

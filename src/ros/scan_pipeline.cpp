@@ -109,6 +109,7 @@ void SweepPipeline<Processor>::reconfigure(const DeskewParams& next) {
   fixed(next.exact == params_.exact, "exact");  // before knot_interval, which exact sets to 0
   fixed(next.deskew.knot_interval == params_.deskew.knot_interval, "knot_interval");
   fixed(next.input_queue_size == params_.input_queue_size, "input_queue_size");
+  fixed(next.cloud_scan.enabled == params_.cloud_scan.enabled, "cloud_scan");  // its publisher
   fixed(next.cloud_time.field == params_.cloud_time.field, "time_field");
   fixed(next.cloud_time.unit == params_.cloud_time.unit, "time_unit");
   fixed(next.cloud_time.base == params_.cloud_time.base, "time_base");
@@ -119,8 +120,9 @@ void SweepPipeline<Processor>::reconfigure(const DeskewParams& next) {
                                                " s while running (the tf cache holds " +
                                                formatNumber(tf_.cacheTime()) + " s); restart with it set");
   }
+  Processor processor(next);  // may refuse `next` too: then nothing changed
   params_ = next;
-  processor_ = Processor(next);
+  processor_ = std::move(processor);
 }
 
 template <class Processor>

@@ -5,8 +5,10 @@
 #include <gtest/gtest.h>
 #include <rosbag/bag.h>
 #include <rosbag/view.h>
+#include <sensor_msgs/LaserScan.h>
 #include <sensor_msgs/PointCloud2.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -133,6 +135,53 @@ TEST(DeskewBagClouds, RoughGroundWithNoise) {
       1e3 * scores.raw, 1e3 * scores.ours, 1e3 * scores.exact);
   EXPECT_LT(scores.ours, 1.02 * scores.exact);
   EXPECT_LT(scores.ours, scores.raw);
+}
+
+// With cloud_scan: the corrected points of the height band as a planar LaserScan (for gmapping/AMCL),
+// each finite bin's endpoint on a true surface (the points' own z left out: a 2 deg tilted mount).
+TEST(DeskewBagClouds, PlanarScanOfTheCorrectedPoints) {
+  const std::string dir = ::testing::TempDir();
+  const std::string in = dir + "/clouds_scan.bag", truth_path = dir + "/clouds_scan.truth";
+  sim::CloudBagOptions options;
+  options.convention = CloudConvention::kVelodyneFirst;
+  options.duration = 0.5;
+  writeCloudBag(sim::findCloudScenario("VLP16/high/arc"), options, in, truth_path);
+  const sim::CloudTruth truth = sim::readCloudTruth(truth_path);
+  const sim::World3 world = sim::World3::byName(truth.world);
+  bag::BagDeskewOptions deskew;
+  deskew.input = in;
+  deskew.output = dir + "/clouds_scan_out.bag";
+  deskew.cloud_topics = {"/points"};
+  deskew.params.cloud_scan.enabled = true;
+  bag::deskewBag(deskew);
+  rosbag::Bag bag(deskew.output, rosbag::bagmode::Read);
+  std::size_t scans = 0, bins = 0, near = 0;
+  for (const rosbag::MessageInstance& message :
+       rosbag::View(bag, rosbag::TopicQuery("/points_deskewed_scan"))) {
+    const auto scan = message.instantiate<sensor_msgs::LaserScan>();
+    ASSERT_TRUE(scan);
+    ++scans;
+    EXPECT_EQ(scan->ranges.size(), 1440u);
+    std::vector<Eigen::Vector3d> ends;
+    for (std::size_t i = 0; i < scan->ranges.size(); ++i) {
+      const double r = scan->ranges[i], a = scan->angle_min + i * static_cast<double>(scan->angle_increment);
+      if (std::isfinite(r))
+        ends.emplace_back(r * std::cos(a), r * std::sin(a), 0.0);
+    }
+    const auto distances =
+        sim::distancesToWorld(world, truth.sensorPose(ros_adapter::toNs(scan->header.stamp)), ends);
+    bins += distances.size();
+    near += std::count_if(distances.begin(), distances.end(), [](double d) { return d < 20e-3; });
+  }
+  std::printf(
+      "planar scan of the corrected VLP-16 points: %zu scans, %zu bins with a return, %.1f %% within 20 mm\n",
+      scans, bins, 100.0 * near / std::max<std::size_t>(1, bins));
+  EXPECT_GE(scans, 4u);
+  EXPECT_GT(bins, 400 * scans);
+  EXPECT_GT(static_cast<double>(near), 0.95 * bins);
+  std::remove(in.c_str());
+  std::remove(truth_path.c_str());
+  std::remove(deskew.output.c_str());
 }
 
 }  // namespace

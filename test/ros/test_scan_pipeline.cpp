@@ -246,8 +246,8 @@ TEST(ScanPipeline, ReconfigureTakesTheLiveParametersAndRefusesTheRest) {
     } else if (type == "string") {
       other = choices.empty() ? "elsewhere" : choices.substr(choices.rfind('|') + 1);
     } else {
-      other = type == "int" ? std::to_string(static_cast<int>(spec.min) + 1)
-                            : std::to_string(spec.min + 1e-3 * (spec.max - spec.min));
+      other = type == "int" ? std::to_string(std::stoi(spec.default_value) + 1)
+                            : std::to_string(std::stod(spec.default_value) + 1e-3 * (spec.max - spec.min));
     }
     const ros_adapter::DeskewParams next = ros_adapter::DeskewParams::load(
         ros_adapter::TextParams(std::map<std::string, std::string>{{spec.name, other}}),

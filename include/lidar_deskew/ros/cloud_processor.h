@@ -2,6 +2,7 @@
 // nodelet and deskew_bag --cloud-topic (docs/DESIGN.md §7).
 #pragma once
 
+#include <sensor_msgs/LaserScan.h>
 #include <sensor_msgs/PointCloud2.h>
 
 #include <Eigen/Core>
@@ -34,6 +35,9 @@ struct PreparedCloud {
 /// The output of one cloud.
 struct CloudOutputs {
   sensor_msgs::PointCloud2::ConstPtr cloud;  ///< every input field and its layout; stamped at the reference
+  /// With cloud_scan: the points within the height band as a planar LaserScan (nearest per bin), in the
+  /// cloud's frame and stamp; null otherwise.
+  sensor_msgs::LaserScan::ConstPtr scan;
 };
 
 /// Corrects clouds with the core. The output keeps every field and the layout of the input: x y z of
@@ -61,6 +65,10 @@ class CloudProcessor {
   CloudOutputs passThrough(const PreparedCloud& prepared) const;
 
  private:
+  /// The planar scan of the finite `points` within the height band (nearest per bin).
+  sensor_msgs::LaserScan::ConstPtr planarScan(const std::vector<Eigen::Vector3d>& points,
+                                              const std_msgs::Header& header) const;
+
   DeskewParams params_;
   CloudTimeConfig time_config_;
   core::ScanDeskewer deskewer_;

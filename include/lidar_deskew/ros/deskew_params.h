@@ -43,8 +43,20 @@ struct DeskewParams {
   core::DeskewConfig deskew;             ///< reference, knot_interval [s] (0 when exact)
   core::RebinConfig rebin;               ///< rebin_min_gap [m], rebin_gap_factor
   CloudTimeConfig cloud_time;            ///< clouds: time_field, time_unit, time_base
-  bool exact = false;                    ///< look tf up for every beam (verification, benchmarks)
-  double tf_timeout = 0.2;               ///< [s] longest wait for tf to cover a sweep's last beam
+  /// Clouds: the planar LaserScan of the corrected points (pointcloud_to_laserscan's job, after the
+  /// correction): cloud_scan, scan_height_min/max [m], scan_angle_min/max/increment [rad], scan_range_max
+  /// [m].
+  struct CloudScan {
+    bool enabled = false;
+    double height_min = -0.1;
+    double height_max = 0.1;
+    double angle_min = -3.14159;
+    double angle_max = 3.14159;
+    double angle_increment = 0.00436332;
+    double range_max = 100.0;
+  } cloud_scan;
+  bool exact = false;       ///< look tf up for every beam (verification, benchmarks)
+  double tf_timeout = 0.2;  ///< [s] longest wait for tf to cover a sweep's last beam
   OnTfFailure on_tf_failure = OnTfFailure::kDrop;
   double max_tf_gap = 0.5;          ///< [s] refuse sweeps tf interpolates across a longer gap; 0 = never
   double max_extrapolation = 0.0;   ///< [s] extrapolate tf this far with the newest velocity; 0 = never
