@@ -2,11 +2,12 @@
 # Builds (Release, CMake directly) and runs one benchmark on one core, median of 5 repetitions.
 #   bash bench/run.sh core   # the ROS-free core: correction, re-binning, per-point times
 #   bash bench/run.sh tf     # with tf lookups: ours (knots, exact) vs laser_geometry, then accuracy
+#   bash bench/run.sh cloud  # multi-line clouds (OS1-64, 65,536 points): core, and the whole per-cloud path
 # Extra arguments go to Google Benchmark, e.g. --benchmark_filter=DeskewScan
 set -euo pipefail
 export PATH=/usr/bin:/bin:$PATH
 repo=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
-name=${1:?usage: bench/run.sh core|tf [benchmark arguments]}
+name=${1:?usage: bench/run.sh core|tf|cloud [benchmark arguments]}
 shift
 bash "$repo/scripts/install_deps.sh" >/dev/null
 build="$repo/.build/bench"

@@ -170,6 +170,27 @@ Eigen::Vector3d KnotTrajectory::apply(double time_offset, const Eigen::Vector3d&
   return segment.left_rotation * rotated + segment.left_translation + fraction * segment.translation_step;
 }
 
+void KnotTrajectory::transformAt(double time_offset, Eigen::Matrix3d& rotation,
+                                 Eigen::Vector3d& translation) const {
+  const Segment& segment = segments_[segmentFor(time_offset)];
+  const double fraction =
+      std::clamp((time_offset - segment.begin_offset) * segment.inverse_duration, 0.0, 1.0);
+  // Exp(s angle axis) by Rodrigues: I + sin K + versin K^2, K the cross-product matrix of the axis.
+  Eigen::Matrix3d turn = Eigen::Matrix3d::Identity();
+  if (segment.angle != 0.0) {
+    double sine, versine;
+    sinAndVersine(fraction * segment.angle, sine, versine);
+    Eigen::Matrix3d cross;
+    cross << 0.0, -segment.axis.z(), segment.axis.y(), segment.axis.z(), 0.0, -segment.axis.x(),
+        -segment.axis.y(), segment.axis.x(), 0.0;
+    turn += sine * cross + versine * cross * cross;
+  }
+  const Eigen::Matrix3d left_turn = segment.left_rotation * turn;
+  rotation = left_turn * mount_rotation_;
+  translation =
+      left_turn * mount_translation_ + segment.left_translation + fraction * segment.translation_step;
+}
+
 void KnotTrajectory::correctPlanarScan(const PlanarScan& scan, double beam_period,
                                        const std::vector<Eigen::Vector2d>& directions,
                                        double reference_offset, DeskewedScan& out) const {
@@ -419,9 +440,24 @@ TimeNs ScanDeskewer::correctPoints(const std::vector<Eigen::Vector3d>& points,
     return reference_time;
   }
   trajectory_.build(origin, earliest, latest, reference_time, config_.knot_interval, mount, motion);
-  for (std::uint32_t i : kept_indices) {
-    corrected.push_back(trajectory_.apply(time_offsets[i], points[i]));
-    corrected_offsets.push_back(time_offsets[i] - exact_reference_offset);
+  // Points of one firing time (a multi-line LIDAR's column) share one affine map, built once for the
+  // run; a point alone at its time is mapped directly.
+  Eigen::Matrix3d rotation;
+  Eigen::Vector3d translation;
+  double mapped = NAN;  // the time offset `rotation` and `translation` are for
+  for (std::size_t k = 0; k < kept_indices.size(); ++k) {
+    const std::uint32_t i = kept_indices[k];
+    const double offset = time_offsets[i];
+    if (offset == mapped) {
+      corrected.push_back(rotation * points[i] + translation);
+    } else if (k + 1 < kept_indices.size() && time_offsets[kept_indices[k + 1]] == offset) {
+      trajectory_.transformAt(offset, rotation, translation);
+      mapped = offset;
+      corrected.push_back(rotation * points[i] + translation);
+    } else {
+      corrected.push_back(trajectory_.apply(offset, points[i]));
+    }
+    corrected_offsets.push_back(offset - exact_reference_offset);
   }
   return reference_time;
 }

@@ -73,26 +73,37 @@ PreparedCloud CloudProcessor::prepare(const sensor_msgs::PointCloud2::ConstPtr& 
   PreparedCloud prepared;
   prepared.message = message;
   prepared.time_field = findTimeField(cloud, time_config_);
-  pointTimes(cloud, prepared.time_field, prepared.times);
+  std::vector<core::TimeNs> times;
+  pointTimes(cloud, prepared.time_field, times);
 
-  const std::size_t count = prepared.times.size();
+  // An organized cloud is taken column by column: the points of one column share a firing time, and
+  // the core then maps each column's points with one transform.
+  const std::size_t count = times.size();
+  const bool by_column = cloud.height > 1;
+  if (by_column)
+    prepared.order.resize(count);
   prepared.points.resize(count);
+  prepared.times.resize(count);
   core::TimeNs first = std::numeric_limits<core::TimeNs>::max();
   core::TimeNs last = std::numeric_limits<core::TimeNs>::min();
-  for (std::size_t i = 0; i < count; ++i) {
+  for (std::size_t j = 0; j < count; ++j) {
+    const std::size_t i = by_column ? (j % cloud.height) * cloud.width + j / cloud.height : j;
+    if (by_column)
+      prepared.order[j] = static_cast<std::uint32_t>(i);
+    prepared.times[j] = times[i];
     const std::uint8_t* point = &cloud.data[pointOffset(cloud, i)];
     const Eigen::Vector3d p(readNumber(point + x.offset, x.datatype),
                             readNumber(point + y.offset, y.datatype),
                             readNumber(point + z.offset, z.datatype));
     // No return: a non-finite coordinate, or exactly the origin (range 0).
     if (!p.allFinite() || (p.x() == 0.0 && p.y() == 0.0 && p.z() == 0.0)) {
-      prepared.points[i].setConstant(std::numeric_limits<double>::quiet_NaN());
+      prepared.points[j].setConstant(std::numeric_limits<double>::quiet_NaN());
       continue;
     }
-    prepared.points[i] = p;
+    prepared.points[j] = p;
     ++prepared.returns;
-    first = std::min(first, prepared.times[i]);
-    last = std::max(last, prepared.times[i]);
+    first = std::min(first, times[i]);
+    last = std::max(last, times[i]);
   }
   if (prepared.returns == 0)
     first = last = toNs(cloud.header.stamp);
@@ -129,7 +140,8 @@ CloudOutputs CloudProcessor::correct(const PreparedCloud& prepared, const mrpt::
   // The time each corrected position holds: the reference, 0 from the new stamp.
   const double time_value = time.absolute ? static_cast<double>(reference) * 1e-9 / time.unit : 0.0;
   for (std::size_t k = 0; k < kept_.size(); ++k) {
-    std::uint8_t* point = &output->data[pointOffset(input, kept_[k])];
+    std::uint8_t* point =
+        &output->data[pointOffset(input, prepared.order.empty() ? kept_[k] : prepared.order[kept_[k]])];
     writeNumber(point + x.offset, x.datatype, corrected_[k].x());
     writeNumber(point + y.offset, y.datatype, corrected_[k].y());
     writeNumber(point + z.offset, z.datatype, corrected_[k].z());

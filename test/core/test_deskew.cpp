@@ -321,6 +321,46 @@ TEST(Deskew, PointsWithPerPointTimesMatchTheExactChain) {
   }
 }
 
+// A multi-line sensor fires a column of points at one time: the column's points share one affine map
+// (KnotTrajectory::transformAt), and still land where the exact chain puts them. Columns given in
+// order, and one point alone at its time (mapped directly).
+TEST(Deskew, PointsSharingAFiringTimeMatchTheExactChain) {
+  core::PoseSamples samples;
+  for (int k = 0; k <= 20; ++k) {
+    const double t = 0.01 * k;
+    samples.add(
+        kEpoch + core::secondsToNs(t),
+        mrpt::poses::CPose3D::FromXYZYawPitchRoll(3.0 * t, 0.5 * t * t, 0.2 * t, 2.0 * t, 0.3 * t, -0.4 * t));
+  }
+  const auto mount = mrpt::poses::CPose3D::FromXYZYawPitchRoll(0.1, -0.2, 0.5, 0.3, 0.05, -0.1);
+  std::vector<Eigen::Vector3d> points;
+  std::vector<double> offsets;
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> coordinate(-10.0, 10.0);
+  for (int column = 0; column < 300; ++column) {
+    const int rings = column == 150 ? 1 : 16;  // one column of a single point
+    for (int ring = 0; ring < rings; ++ring) {
+      points.emplace_back(coordinate(rng), coordinate(rng), coordinate(rng));
+      offsets.push_back(0.2 * column / 299.0);
+    }
+  }
+  ScanDeskewer deskewer(withReference(Reference::kStart));
+  std::vector<Eigen::Vector3d> corrected;
+  std::vector<double> corrected_offsets;
+  std::vector<std::uint32_t> kept;
+  const TimeNs reference =
+      deskewer.deskewPoints(points, offsets, kEpoch, mount, samples, corrected, corrected_offsets, kept);
+  ASSERT_EQ(kept.size(), points.size());
+  double largest = 0.0;
+  for (std::size_t j = 0; j < kept.size(); ++j) {
+    const std::uint32_t i = kept[j];
+    const Eigen::Vector3d exact =
+        core::deskewPointExact(points[i], kEpoch + core::secondsToNs(offsets[i]), reference, mount, samples);
+    largest = std::max(largest, (corrected[j] - exact).norm());
+  }
+  EXPECT_LT(largest, 1e-6);  // 1 um, as point by point
+}
+
 }  // namespace
 }  // namespace lidar_deskew
 

@@ -73,6 +73,10 @@ class KnotTrajectory {
   /// a hint of the last knot segment used (consecutive calls with close times are O(1)).
   Eigen::Vector3d apply(double time_offset, const Eigen::Vector3d& raw) const;
 
+  /// What apply() does at `time_offset`, as one affine map: apply(t, q) = rotation q + translation
+  /// (to rounding). For the points of one firing time (a multi-line LIDAR's column) it is built once.
+  void transformAt(double time_offset, Eigen::Matrix3d& rotation, Eigen::Vector3d& translation) const;
+
   /// True when the mount and every knot's motion rotate about z only (a planar robot with an upright
   /// laser): then correctPlanarScan() applies.
   bool planar() const { return planar_; }

@@ -22,9 +22,12 @@ struct PreparedCloud {
   CloudTimeField time_field;
   std::vector<Eigen::Vector3d> points;  ///< [m] every point; NaN where it is no return
   std::vector<core::TimeNs> times;      ///< [ns] every point's time
-  std::size_t returns = 0;              ///< points with finite coordinates, not at the origin
-  core::TimeNs first = 0;               ///< [ns] earliest return (header.stamp when none)
-  core::TimeNs last = 0;                ///< [ns] latest return
+  /// The cloud's index of each entry of points and times: an organized cloud is taken column by column
+  /// (a column's points share a firing time); empty when in the cloud's own order.
+  std::vector<std::uint32_t> order;
+  std::size_t returns = 0;  ///< points with finite coordinates, not at the origin
+  core::TimeNs first = 0;   ///< [ns] earliest return (header.stamp when none)
+  core::TimeNs last = 0;    ///< [ns] latest return
 
   core::TimeNs earliest() const { return first; }
   core::TimeNs latest() const { return last; }

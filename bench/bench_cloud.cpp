@@ -1,0 +1,102 @@
+// Per-point cost of correcting a multi-line cloud (Google Benchmark): an OS1-64 sweep (64 x 1024 =
+// 65,536 points, organized, Ouster's layout) on a 6 m/s arc, tf at 50 Hz through a real TfFeed.
+// - BM_CloudCore: the core alone (ScanDeskewer::deskewPoints on prepared points and times);
+// - BM_CloudNodeletPath: what the nodelet and deskew_bag do per cloud: parse (layout, time field, every
+//   point's time), correct, build the output message.
+// Prints Google Benchmark's table with ns_per_point. Run: bench/run.sh cloud (pins to one core).
+#include <benchmark/benchmark.h>
+
+#include "lidar_deskew/ros/cloud_processor.h"
+#include "lidar_deskew/ros/conversions.h"
+#include "lidar_deskew/ros/tf_feed.h"
+#include "lidar_deskew/sim/cloud_bag.h"
+#include "lidar_deskew/sim/cloud_scenario.h"
+
+namespace {
+
+using namespace lidar_deskew;
+
+constexpr core::TimeNs kEpoch = 1'700'000'000'000'000'000;
+
+geometry_msgs::TransformStamped transformOf(const sim::Pose3& pose, const std::string& parent,
+                                            const std::string& child, core::TimeNs stamp) {
+  geometry_msgs::TransformStamped transform;
+  transform.header.frame_id = parent;
+  transform.child_frame_id = child;
+  transform.header.stamp = ros_adapter::toRosTime(stamp);
+  transform.transform.translation.x = pose.position.x();
+  transform.transform.translation.y = pose.position.y();
+  transform.transform.translation.z = pose.position.z();
+  const Eigen::Quaterniond q = pose.quaternion();
+  transform.transform.rotation.x = q.x();
+  transform.transform.rotation.y = q.y();
+  transform.transform.rotation.z = q.z();
+  transform.transform.rotation.w = q.w();
+  return transform;
+}
+
+struct Fixture {
+  Fixture() : feed("odom", "base_link", 10.0, [](ros_adapter::TfEvent, const std::string&) {}) {
+    const sim::CloudScenario scenario = sim::findCloudScenario("OS1-64/high/arc");
+    const auto trajectory = scenario.trajectory();
+    const sim::SimulatedCloud sweep =
+        sim::simulateSweep(sim::World3::hall(), *trajectory, scenario.mount, scenario.lidar, 0.0);
+    cloud = boost::make_shared<sensor_msgs::PointCloud2>(
+        sim::toPointCloud2(sweep, sim::CloudConvention::kOuster, kEpoch, "lidar"));
+    feed.add(transformOf(scenario.mount, "base_link", "lidar", kEpoch), true);
+    for (double t = -0.1; t < 0.3; t += 0.02)
+      feed.add(transformOf(trajectory->pose(t), "odom", "base_link", kEpoch + core::secondsToNs(t)), false);
+    std::string error;
+    mount = *feed.mount("lidar", error);
+    points = static_cast<double>(cloud->width) * cloud->height;
+  }
+  ros_adapter::TfFeed feed;
+  sensor_msgs::PointCloud2::Ptr cloud;
+  mrpt::poses::CPose3D mount;
+  double points = 0.0;
+};
+
+Fixture& fixture() {
+  static Fixture instance;
+  return instance;
+}
+
+void BM_CloudCore(benchmark::State& state) {
+  Fixture& f = fixture();
+  ros_adapter::CloudProcessor processor{ros_adapter::DeskewParams()};
+  const ros_adapter::PreparedCloud prepared = processor.prepare(f.cloud);
+  std::vector<double> offsets(prepared.points.size());
+  for (std::size_t i = 0; i < offsets.size(); ++i)
+    offsets[i] = core::nsToSeconds(prepared.times[i] - prepared.first);
+  core::ScanDeskewer deskewer;
+  std::vector<Eigen::Vector3d> corrected;
+  std::vector<double> corrected_offsets;
+  std::vector<std::uint32_t> kept;
+  for (auto _ : state) {
+    deskewer.deskewPoints(prepared.points, offsets, prepared.first, f.mount, f.feed.motion(), corrected,
+                          corrected_offsets, kept);
+    benchmark::DoNotOptimize(corrected.data());
+  }
+  state.counters["points"] = f.points;
+  state.counters["ns_per_point"] = benchmark::Counter(
+      f.points, benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
+}
+BENCHMARK(BM_CloudCore)->Unit(benchmark::kMillisecond);
+
+void BM_CloudNodeletPath(benchmark::State& state) {
+  Fixture& f = fixture();
+  ros_adapter::CloudProcessor processor{ros_adapter::DeskewParams()};
+  for (auto _ : state) {
+    const ros_adapter::PreparedCloud prepared = processor.prepare(f.cloud);
+    const ros_adapter::CloudOutputs outputs = processor.correct(prepared, f.mount, f.feed.motion());
+    benchmark::DoNotOptimize(outputs.cloud.get());
+  }
+  state.counters["points"] = f.points;
+  state.counters["ns_per_point"] = benchmark::Counter(
+      f.points, benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
+}
+BENCHMARK(BM_CloudNodeletPath)->Unit(benchmark::kMillisecond);
+
+}  // namespace
+
+BENCHMARK_MAIN();

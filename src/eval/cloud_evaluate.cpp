@@ -1,0 +1,100 @@
+#include "lidar_deskew/eval/cloud_evaluate.h"
+
+#include <rosbag/bag.h>
+#include <rosbag/view.h>
+
+#include <stdexcept>
+
+#include "lidar_deskew/core/motion.h"
+#include "lidar_deskew/eval/recorded_tf.h"
+#include "lidar_deskew/ros/cloud_processor.h"
+#include "lidar_deskew/ros/conversions.h"
+#include "lidar_deskew/sim/cloud_scenario.h"
+
+namespace lidar_deskew::eval {
+namespace {
+
+/// The returns of a cloud written by CloudProcessor (x y z at their fields), as doubles.
+std::vector<Eigen::Vector3d> returnsOf(const ros_adapter::PreparedCloud& prepared) {
+  std::vector<Eigen::Vector3d> points;
+  for (const Eigen::Vector3d& p : prepared.points) {
+    if (p.allFinite())
+      points.push_back(p);
+  }
+  return points;
+}
+
+void addDistances(const sim::World3& world, const sim::Pose3& pose,
+                  const std::vector<Eigen::Vector3d>& points, std::vector<double>& into) {
+  for (double d : sim::distancesToWorld(world, pose, points))
+    into.push_back(1e3 * d);
+}
+
+}  // namespace
+
+CloudEvaluation evaluateCloudBag(const std::string& bag_path, const std::string& truth_path,
+                                 const std::string& cloud_topic, const ros_adapter::DeskewParams& params) {
+  const sim::CloudTruth truth = sim::readCloudTruth(truth_path);
+  const sim::World3 world = sim::World3::byName(truth.world);
+  rosbag::Bag bag(bag_path, rosbag::bagmode::Read);
+  const std::unique_ptr<ros_adapter::TfFeed> tf =
+      loadRecordedTf(bag, bag_path, params.fixed_frame, params.base_frame);
+
+  ros_adapter::CloudProcessor ours(params);
+  ros_adapter::DeskewParams exact_params = params;
+  exact_params.exact = true;
+  exact_params.deskew.knot_interval = 0.0;
+  ros_adapter::CloudProcessor per_point(exact_params);
+
+  CloudEvaluation evaluation;
+  evaluation.scenario = truth.scenario;
+  evaluation.convention = truth.convention;
+  evaluation.range_sigma_mm = 1e3 * truth.range_sigma;
+  std::vector<double> raw, two_pose, corrected, exact;
+  for (const rosbag::MessageInstance& message : rosbag::View(bag, rosbag::TopicQuery(cloud_topic))) {
+    const auto cloud = message.instantiate<sensor_msgs::PointCloud2>();
+    if (!cloud)
+      continue;
+    const ros_adapter::PreparedCloud prepared = ours.prepare(cloud);
+    std::string error;
+    const std::optional<mrpt::poses::CPose3D> mount =
+        tf->mount(ros_adapter::normalizedFrame(cloud->header.frame_id), error);
+    if (!mount)
+      throw std::runtime_error(bag_path + ": no mount: " + error);
+    const sim::Pose3 reference = truth.sensorPose(prepared.first);
+    ++evaluation.clouds;
+
+    addDistances(world, reference, returnsOf(prepared), raw);
+    for (ros_adapter::CloudProcessor* processor : {&ours, &per_point}) {
+      const ros_adapter::CloudOutputs out = processor->correct(prepared, *mount, tf->motion());
+      const ros_adapter::PreparedCloud corrected_cloud = ours.prepare(out.cloud);  // reads x y z back
+      addDistances(world, reference, returnsOf(corrected_cloud), processor == &ours ? corrected : exact);
+    }
+    // Constant velocity between the poses at the first and last return (lerp + slerp), composed with MRPT.
+    const mrpt::poses::CPose3D first = tf->motion().basePose(prepared.first) + *mount;
+    const mrpt::poses::CPose3D last = tf->motion().basePose(prepared.last) + *mount;
+    const double span = std::max<double>(1, prepared.last - prepared.first);
+    std::vector<Eigen::Vector3d> interpolated;
+    for (std::size_t i = 0; i < prepared.points.size(); ++i) {
+      const Eigen::Vector3d& p = prepared.points[i];
+      if (!p.allFinite())
+        continue;
+      const mrpt::poses::CPose3D at =
+          core::interpolatePose(first, last, static_cast<double>(prepared.times[i] - prepared.first) / span);
+      const mrpt::poses::CPose3D relative = at - first;  // the sensor at its time, seen from the first
+      mrpt::math::TPoint3D moved;
+      relative.composePoint(p.x(), p.y(), p.z(), moved.x, moved.y, moved.z);
+      interpolated.emplace_back(moved.x, moved.y, moved.z);
+    }
+    addDistances(world, reference, interpolated, two_pose);
+  }
+  if (evaluation.clouds == 0)
+    throw std::runtime_error(bag_path + " has no PointCloud2 on " + cloud_topic);
+  evaluation.raw = sim::errorStats(raw);
+  evaluation.two_pose = sim::errorStats(two_pose);
+  evaluation.ours = sim::errorStats(corrected);
+  evaluation.per_point = sim::errorStats(exact);
+  return evaluation;
+}
+
+}  // namespace lidar_deskew::eval
