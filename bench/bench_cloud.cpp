@@ -18,23 +18,6 @@ using namespace lidar_deskew;
 
 constexpr core::TimeNs kEpoch = 1'700'000'000'000'000'000;
 
-geometry_msgs::TransformStamped transformOf(const sim::Pose3& pose, const std::string& parent,
-                                            const std::string& child, core::TimeNs stamp) {
-  geometry_msgs::TransformStamped transform;
-  transform.header.frame_id = parent;
-  transform.child_frame_id = child;
-  transform.header.stamp = ros_adapter::toRosTime(stamp);
-  transform.transform.translation.x = pose.position.x();
-  transform.transform.translation.y = pose.position.y();
-  transform.transform.translation.z = pose.position.z();
-  const Eigen::Quaterniond q = pose.quaternion();
-  transform.transform.rotation.x = q.x();
-  transform.transform.rotation.y = q.y();
-  transform.transform.rotation.z = q.z();
-  transform.transform.rotation.w = q.w();
-  return transform;
-}
-
 struct Fixture {
   Fixture() : feed("odom", "base_link", 10.0, [](ros_adapter::TfEvent, const std::string&) {}) {
     const sim::CloudScenario scenario = sim::findCloudScenario("OS1-64/high/arc");
@@ -43,9 +26,9 @@ struct Fixture {
         sim::simulateSweep(sim::World3::hall(), *trajectory, scenario.mount, scenario.lidar, 0.0);
     cloud = boost::make_shared<sensor_msgs::PointCloud2>(
         sim::toPointCloud2(sweep, sim::CloudConvention::kOuster, kEpoch, "lidar"));
-    feed.add(transformOf(scenario.mount, "base_link", "lidar", kEpoch), true);
+    feed.add(sim::stamped("base_link", "lidar", kEpoch, scenario.mount), true);
     for (double t = -0.1; t < 0.3; t += 0.02)
-      feed.add(transformOf(trajectory->pose(t), "odom", "base_link", kEpoch + core::secondsToNs(t)), false);
+      feed.add(sim::stamped("odom", "base_link", kEpoch + core::secondsToNs(t), trajectory->pose(t)), false);
     std::string error;
     mount = *feed.mount("lidar", error);
     points = static_cast<double>(cloud->width) * cloud->height;

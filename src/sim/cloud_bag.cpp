@@ -89,6 +89,8 @@ core::TimeNs bagTime(core::TimeNs epoch, double t) {
   return epoch + core::secondsToNs(t);
 }
 
+}  // namespace
+
 geometry_msgs::TransformStamped stamped(const std::string& parent, const std::string& child,
                                         core::TimeNs time, const Pose3& pose) {
   geometry_msgs::TransformStamped transform;
@@ -105,8 +107,6 @@ geometry_msgs::TransformStamped stamped(const std::string& parent, const std::st
   transform.transform.rotation.w = rotation.w();
   return transform;
 }
-
-}  // namespace
 
 const std::vector<CloudConvention>& allCloudConventions() {
   static const std::vector<CloudConvention> conventions = {

@@ -287,7 +287,8 @@ TEST(Deskew, MotionNotCoveringTheSweepThrowsAndLeavesNoPoints) {
 }
 
 // Points with their own times (3D clouds): a 3D mount and motion with roll and pitch.
-TEST(Deskew, PointsWithPerPointTimesMatchTheExactChain) {
+/// 0.2 s of 3D motion (translation, yaw, pitch, roll all changing), sampled every 10 ms.
+core::PoseSamples movingIn3d() {
   core::PoseSamples samples;
   for (int k = 0; k <= 20; ++k) {
     const double t = 0.01 * k;
@@ -295,7 +296,16 @@ TEST(Deskew, PointsWithPerPointTimesMatchTheExactChain) {
         kEpoch + core::secondsToNs(t),
         mrpt::poses::CPose3D::FromXYZYawPitchRoll(3.0 * t, 0.5 * t * t, 0.2 * t, 2.0 * t, 0.3 * t, -0.4 * t));
   }
-  const auto mount = mrpt::poses::CPose3D::FromXYZYawPitchRoll(0.1, -0.2, 0.5, 0.3, 0.05, -0.1);
+  return samples;
+}
+
+mrpt::poses::CPose3D tiltedMount() {
+  return mrpt::poses::CPose3D::FromXYZYawPitchRoll(0.1, -0.2, 0.5, 0.3, 0.05, -0.1);
+}
+
+TEST(Deskew, PointsWithPerPointTimesMatchTheExactChain) {
+  const core::PoseSamples samples = movingIn3d();
+  const auto mount = tiltedMount();
   std::vector<Eigen::Vector3d> points;
   std::vector<double> offsets;
   std::mt19937 rng(7);
@@ -325,14 +335,8 @@ TEST(Deskew, PointsWithPerPointTimesMatchTheExactChain) {
 // (KnotTrajectory::transformAt), and still land where the exact chain puts them. Columns given in
 // order, and one point alone at its time (mapped directly).
 TEST(Deskew, PointsSharingAFiringTimeMatchTheExactChain) {
-  core::PoseSamples samples;
-  for (int k = 0; k <= 20; ++k) {
-    const double t = 0.01 * k;
-    samples.add(
-        kEpoch + core::secondsToNs(t),
-        mrpt::poses::CPose3D::FromXYZYawPitchRoll(3.0 * t, 0.5 * t * t, 0.2 * t, 2.0 * t, 0.3 * t, -0.4 * t));
-  }
-  const auto mount = mrpt::poses::CPose3D::FromXYZYawPitchRoll(0.1, -0.2, 0.5, 0.3, 0.05, -0.1);
+  const core::PoseSamples samples = movingIn3d();
+  const auto mount = tiltedMount();
   std::vector<Eigen::Vector3d> points;
   std::vector<double> offsets;
   std::mt19937 rng(11);

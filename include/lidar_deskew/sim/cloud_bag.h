@@ -2,6 +2,7 @@
 // the cloud layout of a chosen driver, plus its truth file (cloud_scenario.h).
 #pragma once
 
+#include <geometry_msgs/TransformStamped.h>
 #include <sensor_msgs/PointCloud2.h>
 
 #include <string>
@@ -84,6 +85,10 @@ struct CloudBagOptions {
   std::string lidar_frame = "lidar";
   std::string cloud_topic = "/points";
 };
+
+/// `pose` as the tf transform parent -> child at `time` [ns].
+geometry_msgs::TransformStamped stamped(const std::string& parent, const std::string& child,
+                                        core::TimeNs time, const Pose3& pose);
 
 /// Simulates `scenario` and writes `bag_path` with
 /// - /points (sensor_msgs/PointCloud2) in the convention's layout (toPointCloud2), one per sweep,
