@@ -146,6 +146,29 @@ DeskewNode<Processor>::DeskewNode(ros::NodeHandle nh, ros::NodeHandle private_nh
     // Named after the input as remapped (the bag tool's names): two instances never collide.
     advertiseOutputs(nh_.resolveName(inputTopic<Processor>()), connect);
   }
+  timer_ = nh_.createWallTimer(ros::WallDuration(kTimerPeriod), &DeskewNode::timerCallback, this);
+  const std::string mode = params_.exact
+                               ? "exact per-beam lookups"
+                               : "knots every " + std::to_string(params_.deskew.knot_interval) + " s";
+  const core::TimingConfig& timing = params_.timing;
+  std::string outputs;
+  for (const ros::Publisher& publisher : publishers_)
+    outputs += (outputs.empty() ? "" : " and ") + publisher.getTopic();
+  const std::string timed =
+      std::is_same_v<Processor, ros_adapter::ScanProcessor>
+          ? "stamp_at " + core::toString(timing.stamp_at) + ", scan_period " +
+                ros_adapter::formatNumber(timing.scan_period) + " s (when time_increment and scan_time are 0)"
+          : "time field " +
+                (params_.cloud_time.field.empty() ? std::string("found alone") : params_.cloud_time.field) +
+                " (unit " + params_.cloud_time.unit + ", base " + params_.cloud_time.base + ")";
+  ROS_INFO(
+      "%s: %s -> %s; fixed_frame %s, base_frame %s; %s; reference %s, %s; tf_timeout %.3f s, on_tf_failure "
+      "%s",
+      name_.c_str(), nh_.resolveName(inputTopic<Processor>()).c_str(), outputs.c_str(),
+      params_.fixed_frame.c_str(), params_.base_frame.c_str(), timed.c_str(),
+      core::toString(params_.deskew.reference).c_str(), mode.c_str(), params_.tf_timeout,
+      ros_adapter::toString(params_.on_tf_failure).c_str());
+  // Last: from here on a reconfigure callback may change params_ (under mutex_) from another thread.
   // dynamic_reconfigure: the server reads the parameters as loaded above and calls back at once.
   reconfigure_ = std::make_unique<Reconfigure>(private_nh_);
   reconfigure_->server.setCallback([this](DeskewConfig& config, std::uint32_t /*level*/) {
@@ -169,28 +192,6 @@ DeskewNode<Processor>::DeskewNode(ros::NodeHandle nh, ros::NodeHandle private_nh
     }
     reconfigure_->first = false;
   });
-  timer_ = nh_.createWallTimer(ros::WallDuration(kTimerPeriod), &DeskewNode::timerCallback, this);
-  const std::string mode = params_.exact
-                               ? "exact per-beam lookups"
-                               : "knots every " + std::to_string(params_.deskew.knot_interval) + " s";
-  const core::TimingConfig& timing = params_.timing;
-  std::string outputs;
-  for (const ros::Publisher& publisher : publishers_)
-    outputs += (outputs.empty() ? "" : " and ") + publisher.getTopic();
-  const std::string timed =
-      std::is_same_v<Processor, ros_adapter::ScanProcessor>
-          ? "stamp_at " + core::toString(timing.stamp_at) + ", scan_period " +
-                ros_adapter::formatNumber(timing.scan_period) + " s (when time_increment and scan_time are 0)"
-          : "time field " +
-                (params_.cloud_time.field.empty() ? std::string("found alone") : params_.cloud_time.field) +
-                " (unit " + params_.cloud_time.unit + ", base " + params_.cloud_time.base + ")";
-  ROS_INFO(
-      "%s: %s -> %s; fixed_frame %s, base_frame %s; %s; reference %s, %s; tf_timeout %.3f s, on_tf_failure "
-      "%s",
-      name_.c_str(), nh_.resolveName(inputTopic<Processor>()).c_str(), outputs.c_str(),
-      params_.fixed_frame.c_str(), params_.base_frame.c_str(), timed.c_str(),
-      core::toString(params_.deskew.reference).c_str(), mode.c_str(), params_.tf_timeout,
-      ros_adapter::toString(params_.on_tf_failure).c_str());
 }
 
 template <class Processor>

@@ -72,13 +72,23 @@ PreparedCloud CloudProcessor::prepare(const sensor_msgs::PointCloud2::ConstPtr& 
   const PointField& z = coordinateField(cloud, "z");
   PreparedCloud prepared;
   prepared.message = message;
-  prepared.time_field = findTimeField(cloud, time_config_);
+  // Returns: finite coordinates, not exactly the origin (range 0: "no return" for Ouster and others).
+  // Only their times count; a no-return point may carry any time, or none.
+  const std::size_t count = static_cast<std::size_t>(cloud.width) * cloud.height;
+  std::vector<Eigen::Vector3d> coordinates(count);
+  std::vector<bool> is_return(count);
+  for (std::size_t i = 0; i < count; ++i) {
+    const std::uint8_t* point = &cloud.data[pointOffset(cloud, i)];
+    coordinates[i] = {readNumber(point + x.offset, x.datatype), readNumber(point + y.offset, y.datatype),
+                      readNumber(point + z.offset, z.datatype)};
+    is_return[i] = coordinates[i].allFinite() && !coordinates[i].isZero(0.0);
+  }
+  prepared.time_field = findTimeField(cloud, time_config_, &is_return);
   std::vector<core::TimeNs> times;
-  pointTimes(cloud, prepared.time_field, times);
+  pointTimes(cloud, prepared.time_field, times, &is_return);
 
   // An organized cloud is taken column by column: the points of one column share a firing time, and
   // the core then maps each column's points with one transform.
-  const std::size_t count = times.size();
   const bool by_column = cloud.height > 1;
   if (by_column)
     prepared.order.resize(count);
@@ -91,16 +101,11 @@ PreparedCloud CloudProcessor::prepare(const sensor_msgs::PointCloud2::ConstPtr& 
     if (by_column)
       prepared.order[j] = static_cast<std::uint32_t>(i);
     prepared.times[j] = times[i];
-    const std::uint8_t* point = &cloud.data[pointOffset(cloud, i)];
-    const Eigen::Vector3d p(readNumber(point + x.offset, x.datatype),
-                            readNumber(point + y.offset, y.datatype),
-                            readNumber(point + z.offset, z.datatype));
-    // No return: a non-finite coordinate, or exactly the origin (range 0).
-    if (!p.allFinite() || (p.x() == 0.0 && p.y() == 0.0 && p.z() == 0.0)) {
+    if (!is_return[i]) {
       prepared.points[j].setConstant(std::numeric_limits<double>::quiet_NaN());
       continue;
     }
-    prepared.points[j] = p;
+    prepared.points[j] = coordinates[i];
     ++prepared.returns;
     first = std::min(first, times[i]);
     last = std::max(last, times[i]);
@@ -138,7 +143,13 @@ CloudOutputs CloudProcessor::correct(const PreparedCloud& prepared, const mrpt::
   const PointField& z = coordinateField(input, "z");
   const CloudTimeField& time = prepared.time_field;
   // The time each corrected position holds: the reference, 0 from the new stamp.
-  const double time_value = time.absolute ? static_cast<double>(reference) * 1e-9 / time.unit : 0.0;
+  // (absolute: whole units and the fraction apart, as the drivers write them)
+  double time_value = 0.0;
+  if (time.absolute) {
+    const auto unit_ns = static_cast<core::TimeNs>(std::llround(time.unit * 1e9));
+    time_value = static_cast<double>(reference / unit_ns) +
+                 static_cast<double>(reference % unit_ns) / static_cast<double>(unit_ns);
+  }
   for (std::size_t k = 0; k < kept_.size(); ++k) {
     std::uint8_t* point =
         &output->data[pointOffset(input, prepared.order.empty() ? kept_[k] : prepared.order[kept_[k]])];

@@ -86,6 +86,9 @@ std::vector<double> candidateUnits(const CloudTimeConfig& config, std::uint8_t d
   return {1.0, 1e-3, 1e-6, 1e-9};
 }
 
+/// [s] How far beyond its points' offsets a header may lie (a driver's latency).
+constexpr double kHeaderSlack = 0.1;
+
 std::string fieldList(const sensor_msgs::PointCloud2& cloud) {
   std::string names;
   for (const PointField& field : cloud.fields)
@@ -153,7 +156,8 @@ double readNumber(const std::uint8_t* point, std::uint8_t datatype) {
   return std::numeric_limits<double>::quiet_NaN();
 }
 
-CloudTimeField findTimeField(const sensor_msgs::PointCloud2& cloud, const CloudTimeConfig& config) {
+CloudTimeField findTimeField(const sensor_msgs::PointCloud2& cloud, const CloudTimeConfig& config,
+                             const std::vector<bool>* returns) {
   const PointField* found = nullptr;
   for (const PointField& field : cloud.fields) {
     const bool wanted = config.field.empty()
@@ -179,68 +183,87 @@ CloudTimeField findTimeField(const sensor_msgs::PointCloud2& cloud, const CloudT
   result.datatype = found->datatype;
   result.offset = found->offset;
 
-  // The values' range over every point.
+  // The values' range over the returns (no-return points may carry any time, or none).
   const std::size_t count = static_cast<std::size_t>(cloud.width) * cloud.height;
   double low = std::numeric_limits<double>::infinity();
   double high = -low;
+  std::size_t counted = 0;
   for (std::size_t i = 0; i < count; ++i) {
+    if (returns != nullptr && !(*returns)[i])
+      continue;
     const double value = readNumber(&cloud.data[pointOffset(cloud, i) + result.offset], result.datatype);
     if (!std::isfinite(value))
       throw core::InvalidInput("time field",
                                result.name + " of point " + std::to_string(i) + " is not finite");
     low = std::min(low, value);
     high = std::max(high, value);
+    ++counted;
   }
-  if (count == 0)
+  if (counted == 0)
     low = high = 0.0;
   const double stamp = toNs(cloud.header.stamp) * 1e-9;
   const double sweep = config.max_sweep_duration;
   const std::vector<double> units = candidateUnits(config, result.datatype);
 
-  // Absolute: in some unit, every value within a sweep and a second of the header.
-  if (config.base != "header" && count > 0) {
+  // Both given: as told, whatever the values (the sweep's span is still checked by the caller).
+  if (config.unit != "auto" && config.base != "auto") {
+    result.absolute = config.base == "absolute";
+    result.unit = units.front();
+    return result;
+  }
+  const auto absolute = [&]() {
+    // In some unit, every value within a sweep and a second of the header.
     for (double unit : units) {
-      if (std::abs(low * unit - stamp) <= sweep + 1.0 && std::abs(high * unit - stamp) <= sweep + 1.0) {
+      if (counted > 0 && std::abs(low * unit - stamp) <= sweep + 1.0 &&
+          std::abs(high * unit - stamp) <= sweep + 1.0) {
         result.absolute = true;
         result.unit = unit;
-        return result;
+        return true;
       }
     }
-  }
-  // Offsets from the header: the unit whose span is a plausible sweep (at least 1 ms when one is), and
-  // the header within a second of the sweep.
-  if (config.base != "absolute") {
-    const auto fits = [&](double unit, double shortest) {
-      const double span = (high - low) * unit;
-      return span <= sweep && span >= shortest && std::abs(low * unit) <= sweep + 1.0 &&
-             std::abs(high * unit) <= sweep + 1.0;
-    };
-    for (double shortest : {1e-3, 0.0}) {
-      for (double unit : units) {
-        if (fits(unit, shortest)) {
-          result.absolute = false;
-          result.unit = unit;
-          return result;
-        }
+    return false;
+  };
+  const auto relative = [&]() {
+    // Offsets from the header: the first unit (integers: ns first; floating: s first) in which the
+    // values span at most a sweep, with the header at most 0.1 s
+    // beyond them (drivers stamp the first or last point, some with a little latency).
+    for (double unit : units) {
+      if ((high - low) * unit <= sweep && std::abs(low * unit) <= sweep + kHeaderSlack &&
+          std::abs(high * unit) <= sweep + kHeaderSlack) {
+        result.absolute = false;
+        result.unit = unit;
+        return true;
       }
     }
-  }
+    return false;
+  };
+  // Near time 0 (a simulator's clock) offsets and times look alike: offsets are the commoner.
+  const bool early = stamp <= 2.0 * (sweep + 1.0);
+  const bool try_absolute = config.base != "header";
+  const bool try_relative = config.base != "absolute";
+  if (early ? (try_relative && relative()) || (try_absolute && absolute())
+            : (try_absolute && absolute()) || (try_relative && relative()))
+    return result;
   throw core::InvalidInput(
       "time field", result.name + " (" + typeName(result.datatype) + ") holds " + formatNumber(low) + " .. " +
                         formatNumber(high) +
                         ": in no unit (s, ms, us, ns) a sweep of at most max_sweep_duration " +
                         formatNumber(sweep) + " s near header.stamp " + std::to_string(stamp) +
-                        " (set time_unit and time_base)");
+                        " (set both time_unit and time_base)");
 }
 
 void pointTimes(const sensor_msgs::PointCloud2& cloud, const CloudTimeField& field,
-                std::vector<core::TimeNs>& times) {
+                std::vector<core::TimeNs>& times, const std::vector<bool>* returns) {
   const std::size_t count = static_cast<std::size_t>(cloud.width) * cloud.height;
   times.resize(count);
   const core::TimeNs base = field.absolute ? 0 : toNs(cloud.header.stamp);
   const bool exact_ns = field.unit == 1e-9 && isInteger(field.datatype);
   const auto unit_ns = static_cast<core::TimeNs>(std::llround(field.unit * 1e9));
   for (std::size_t i = 0; i < count; ++i) {
+    if (returns != nullptr && !(*returns)[i]) {
+      times[i] = base;  // no return: its time is not read
+      continue;
+    }
     const std::uint8_t* at = &cloud.data[pointOffset(cloud, i) + field.offset];
     if (exact_ns && field.datatype == PointField::UINT32) {
       std::uint32_t value;

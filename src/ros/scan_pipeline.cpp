@@ -133,10 +133,17 @@ void SweepPipeline<Processor>::onTfEvent(TfEvent event, const std::string& text)
       report_(PipelineEvent::kStaticIgnored, text);
       break;
     case TfEvent::kTimeJump:
+      if (tf_follows_clock_) {
+        // The clock went back first (counted then) and old tf came after it; the cache now holds the
+        // new time line, and the scans waiting belong to it.
+        tf_follows_clock_ = false;
+        break;
+      }
       ++counters_.time_jumps;
       report_(PipelineEvent::kTimeJump, text + " and " + std::to_string(pending_.size()) + " waiting scans");
       failWaiting("time went backwards");
       clock_follows_tf_ = true;  // the owner's clock may follow tf back: that is this jump, not another
+      tf_jump_clock_ = clock_.value_or(0.0);
       break;
     case TfEvent::kBadTransform:
       report_(PipelineEvent::kBadTransform, text);
@@ -155,6 +162,11 @@ template <class Processor>
 void SweepPipeline<Processor>::observeClock(double now) {
   if (!clock_ || now + kClockJump >= *clock_) {
     clock_ = std::max(now, clock_.value_or(now));
+    // The marks of a past jump expire once the clock has run on past them.
+    if (clock_follows_tf_ && *clock_ > tf_jump_clock_ + 2 * kClockJump)
+      clock_follows_tf_ = false;
+    if (tf_follows_clock_ && *clock_ > clock_jump_clock_ + 2 * kClockJump)
+      tf_follows_clock_ = false;
     return;
   }
   const double back = *clock_ - now;
@@ -172,6 +184,10 @@ void SweepPipeline<Processor>::observeClock(double now) {
                                         " s: clearing the tf cache and " + std::to_string(pending_.size()) +
                                         " waiting scans");
   tf_.forgetMotion();
+  // tf of the old time line may still be on its way (another connection) and refill the cache: the tf
+  // going back after it is then this jump, not another.
+  tf_follows_clock_ = true;
+  clock_jump_clock_ = now;
   failWaiting("the clock went back");
 }
 

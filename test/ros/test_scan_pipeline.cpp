@@ -199,7 +199,7 @@ TEST(ScanPipeline, ClockResetAloneIsATimeJump) {
   run.statics(0.0);
   run.tfUntil(2.0);
   run.pipeline.add(run.drive.scanAt(3.0), 3.0);  // waits: tf ends at 2 s
-  run.pipeline.expire(0.5);                          // the clock alone goes back 2.5 s
+  run.pipeline.expire(0.5);                      // the clock alone goes back 2.5 s
   EXPECT_EQ(run.pipeline.counters().time_jumps, 1u);
   EXPECT_EQ(run.pipeline.waiting(), 0u);
   EXPECT_EQ(run.pipeline.counters().dropped_tf, 1u);
@@ -211,6 +211,26 @@ TEST(ScanPipeline, ClockResetAloneIsATimeJump) {
   EXPECT_EQ(run.pipeline.counters().time_jumps, 1u);
   EXPECT_EQ(run.pipeline.counters().published, 4u);
   EXPECT_LT(rms(run.cloudDistances()), 1e-3);
+}
+
+// The clock goes back first, then tf of the old time line still on its way, then tf of the new one: one
+// jump, and the scan of the new time line waiting meanwhile is corrected. A later reset counts again.
+TEST(ScanPipeline, OldTfAfterAClockResetIsTheSameJump) {
+  PipelineRun run{Drive()};
+  run.statics(0.0);
+  run.tfUntil(2.0);
+  run.pipeline.expire(0.1);  // the clock goes back
+  EXPECT_EQ(run.pipeline.counters().time_jumps, 1u);
+  run.pipeline.addTransforms({run.drive.motionAt(2.02)}, false, 0.1);  // old, late
+  run.pipeline.add(run.drive.scanAt(0.2), 0.12);                       // the new time line
+  run.tf_until = 0.1;
+  run.tfUntil(0.3);  // tf goes back against the old one: the same jump
+  EXPECT_EQ(run.pipeline.counters().time_jumps, 1u);
+  EXPECT_EQ(run.pipeline.counters().published, 1u);
+  EXPECT_EQ(run.pipeline.counters().dropped_tf, 0u);
+  run.tfUntil(5.0);
+  run.pipeline.expire(1.0);  // the clock resets again, well after: a new jump
+  EXPECT_EQ(run.pipeline.counters().time_jumps, 2u);
 }
 
 // tf goes back first, the clock follows (a looped bag, two connections): one jump, and a scan of the
@@ -225,7 +245,7 @@ TEST(ScanPipeline, ClockFollowingTfBackIsTheSameJump) {
     run.pipeline.addTransforms({run.drive.motionAt(t)}, false, old_clock);
   EXPECT_EQ(run.pipeline.counters().time_jumps, 1u);
   run.pipeline.add(run.drive.scanAt(0.1), old_clock);  // waits for tf up to its end
-  run.pipeline.expire(0.14);                               // the clock comes back
+  run.pipeline.expire(0.14);                           // the clock comes back
   EXPECT_EQ(run.pipeline.counters().time_jumps, 1u);
   EXPECT_EQ(run.pipeline.waiting(), 1u);
   run.pipeline.expire(0.14 + run.pipeline.params().tf_timeout + 0.01);  // now it has waited too long

@@ -53,17 +53,22 @@ inline std::size_t pointOffset(const sensor_msgs::PointCloud2& cloud, std::size_
 /// Reads a numeric field of the point at byte offset `at` (of any PointField datatype) as a double.
 double readNumber(const std::uint8_t* point, std::uint8_t datatype);
 
-/// Finds the time field and decides its unit and base from the values of every point against
-/// header.stamp: absolute when, in some unit, the values lie within max_sweep_duration + 1 s of
-/// header.stamp; otherwise offsets from header.stamp in the unit that makes their span a plausible
-/// sweep (at least 1 ms, at most max_sweep_duration; integer fields tried as ns, us, ms, s and
-/// floating ones as s, ms, us, ns). Throws core::InvalidInput("time field") with a message naming
-/// the cloud's fields when there is none, or its values fit no unit. The layout must be checked.
-CloudTimeField findTimeField(const sensor_msgs::PointCloud2& cloud, const CloudTimeConfig& config);
+/// Finds the time field and decides its unit and base from the values of the returns (`returns[i]`;
+/// every point when null) against header.stamp: absolute when, in some unit, the values lie within
+/// max_sweep_duration + 1 s of header.stamp; otherwise offsets from header.stamp in the first unit in
+/// which they span at most max_sweep_duration (integer fields tried as ns, us, ms, s; floating ones as
+/// s, ms, us, ns: the drivers' own units come first). Near time 0 (header.stamp within twice that
+/// window: a simulator's clock) offsets are tried first, as the two look alike there. time_unit or
+/// time_base alone narrow the choice; both given decide it. Throws core::InvalidInput("time field")
+/// with a message naming the cloud's fields when there is none, or its values fit no unit. The layout
+/// must be checked.
+CloudTimeField findTimeField(const sensor_msgs::PointCloud2& cloud, const CloudTimeConfig& config,
+                             const std::vector<bool>* returns = nullptr);
 
-/// Absolute time [ns] of every point, in index order. A non-finite time is an error
-/// (core::InvalidInput naming the field).
+/// Absolute time [ns] of every point, in index order (of a no-return point, when `returns` says so:
+/// header.stamp, its value unread). A non-finite time of a return is an error (core::InvalidInput
+/// naming the field).
 void pointTimes(const sensor_msgs::PointCloud2& cloud, const CloudTimeField& field,
-                std::vector<core::TimeNs>& times);
+                std::vector<core::TimeNs>& times, const std::vector<bool>* returns = nullptr);
 
 }  // namespace lidar_deskew::ros_adapter

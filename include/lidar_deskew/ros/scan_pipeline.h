@@ -149,6 +149,9 @@ class SweepPipeline {
   std::optional<std::uint32_t> last_seq_;  // header.seq of the last scan received
   std::optional<double> clock_;            // [s] the newest `now` given (since the last time jump)
   bool clock_follows_tf_ = false;          // tf went back; the clock going back next is the same jump
+  double tf_jump_clock_ = 0.0;             // [s] the clock when tf went back (the mark expires 2 s on)
+  bool tf_follows_clock_ = false;          // the clock went back; tf going back next is the same jump
+  double clock_jump_clock_ = 0.0;          // [s] the clock after it went back (the mark expires 2 s on)
 };
 
 using ScanPipeline = SweepPipeline<ScanProcessor>;
