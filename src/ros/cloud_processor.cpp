@@ -72,40 +72,42 @@ PreparedCloud CloudProcessor::prepare(const sensor_msgs::PointCloud2::ConstPtr& 
   const PointField& z = coordinateField(cloud, "z");
   PreparedCloud prepared;
   prepared.message = message;
-  // Returns: finite coordinates, not exactly the origin (range 0: "no return" for Ouster and others).
-  // Only their times count; a no-return point may carry any time, or none.
-  const std::size_t count = static_cast<std::size_t>(cloud.width) * cloud.height;
-  std::vector<Eigen::Vector3d> coordinates(count);
-  std::vector<bool> is_return(count);
-  for (std::size_t i = 0; i < count; ++i) {
-    const std::uint8_t* point = &cloud.data[pointOffset(cloud, i)];
-    coordinates[i] = {readNumber(point + x.offset, x.datatype), readNumber(point + y.offset, y.datatype),
-                      readNumber(point + z.offset, z.datatype)};
-    is_return[i] = coordinates[i].allFinite() && !coordinates[i].isZero(0.0);
-  }
-  prepared.time_field = findTimeField(cloud, time_config_, &is_return);
-  std::vector<core::TimeNs> times;
-  pointTimes(cloud, prepared.time_field, times, &is_return);
-
   // An organized cloud is taken column by column: the points of one column share a firing time, and
-  // the core then maps each column's points with one transform.
+  // the core then maps each column's points with one transform. Entry j of points and times is the
+  // cloud's point order[j].
+  const std::size_t count = static_cast<std::size_t>(cloud.width) * cloud.height;
   const bool by_column = cloud.height > 1;
+  const auto entryOf = [&](std::size_t i) {
+    return by_column ? (i % cloud.width) * cloud.height + i / cloud.width : i;
+  };
   if (by_column)
     prepared.order.resize(count);
   prepared.points.resize(count);
   prepared.times.resize(count);
-  core::TimeNs first = std::numeric_limits<core::TimeNs>::max();
-  core::TimeNs last = std::numeric_limits<core::TimeNs>::min();
-  for (std::size_t j = 0; j < count; ++j) {
-    const std::size_t i = by_column ? (j % cloud.height) * cloud.width + j / cloud.height : j;
+  // Returns: finite coordinates, not exactly the origin (range 0: "no return" for Ouster and others).
+  // Only their times count; a no-return point may carry any time, or none.
+  std::vector<bool> is_return(count);
+  for (std::size_t i = 0; i < count; ++i) {
+    const std::size_t j = entryOf(i);
     if (by_column)
       prepared.order[j] = static_cast<std::uint32_t>(i);
-    prepared.times[j] = times[i];
-    if (!is_return[i]) {
-      prepared.points[j].setConstant(std::numeric_limits<double>::quiet_NaN());
+    const std::uint8_t* point = &cloud.data[pointOffset(cloud, i)];
+    Eigen::Vector3d& p = prepared.points[j];
+    p = {readNumber(point + x.offset, x.datatype), readNumber(point + y.offset, y.datatype),
+         readNumber(point + z.offset, z.datatype)};
+    is_return[i] = p.allFinite() && !p.isZero(0.0);
+    if (!is_return[i])
+      p.setConstant(std::numeric_limits<double>::quiet_NaN());
+  }
+  prepared.time_field = findTimeField(cloud, time_config_, &is_return);
+  std::vector<core::TimeNs> times;
+  pointTimes(cloud, prepared.time_field, times, &is_return);
+  core::TimeNs first = std::numeric_limits<core::TimeNs>::max();
+  core::TimeNs last = std::numeric_limits<core::TimeNs>::min();
+  for (std::size_t i = 0; i < count; ++i) {
+    prepared.times[entryOf(i)] = times[i];
+    if (!is_return[i])
       continue;
-    }
-    prepared.points[j] = coordinates[i];
     ++prepared.returns;
     first = std::min(first, times[i]);
     last = std::max(last, times[i]);
