@@ -1,5 +1,5 @@
 // The parameter table (DeskewParams::specs) is the one place parameters are written: config/deskew.yaml
-// and the README's table must say the same, and every bound it states is enforced.
+// and the table of docs/PARAMETERS.md must say the same, and every bound it states is enforced.
 #include <gtest/gtest.h>
 
 #include <fstream>
@@ -45,9 +45,9 @@ TEST(Params, ConfigFileListsEveryParameterWithItsDefault) {
   EXPECT_EQ(loaded.queue_size, defaults.queue_size);
 }
 
-// README.md's parameter table: a row per parameter, with the default and unit of the table in code.
-TEST(Params, ReadmeTableMatchesTheCode) {
-  const std::string readme = readFile(std::string(LIDAR_DESKEW_SOURCE_DIR) + "/README.md");
+// docs/PARAMETERS.md's table: a row per parameter, with the default and unit of the table in code.
+TEST(Params, DocumentedTableMatchesTheCode) {
+  const std::string readme = readFile(std::string(LIDAR_DESKEW_SOURCE_DIR) + "/docs/PARAMETERS.md");
   struct Row {
     std::string default_value, unit, bounds, live;
   };
@@ -67,7 +67,7 @@ TEST(Params, ReadmeTableMatchesTheCode) {
       rows[cells[0]] = {cells[1], cells[2], cells[3], cells[4]};
   }
   for (const ParamSpec& spec : DeskewParams::specs()) {
-    ASSERT_TRUE(rows.count(spec.name)) << spec.name << " has no row in README.md's parameter table";
+    ASSERT_TRUE(rows.count(spec.name)) << spec.name << " has no row in docs/PARAMETERS.md's table";
     const std::string& documented = rows[spec.name].default_value;
     if (std::string(spec.type) == "double") {
       EXPECT_DOUBLE_EQ(std::stod(documented), std::stod(spec.default_value)) << spec.name;
