@@ -30,6 +30,30 @@ void addDistances(const sim::World3& world, const sim::Pose3& pose,
     into.push_back(1e3 * d);
 }
 
+/// The returns of `prepared` moved to the reference time with the true sensor motion: point i, measured
+/// in the sensor frame at times[i], seen from the true sensor pose at the reference time.
+std::vector<Eigen::Vector3d> truthCorrected(const ros_adapter::PreparedCloud& prepared,
+                                            const sim::CloudTruth& truth, const sim::Pose3& reference) {
+  const sim::Pose3 to_reference = reference.inverse();
+  std::vector<Eigen::Vector3d> points;
+  points.reserve(prepared.points.size());
+  core::TimeNs pose_time = 0;
+  sim::Pose3 relative;  // reference^-1 (+) sensor(pose_time); a column's points share their time
+  bool have_pose = false;
+  for (std::size_t i = 0; i < prepared.points.size(); ++i) {
+    const Eigen::Vector3d& p = prepared.points[i];
+    if (!p.allFinite())
+      continue;
+    if (!have_pose || prepared.times[i] != pose_time) {
+      pose_time = prepared.times[i];
+      relative = to_reference.compose(truth.sensorPose(pose_time));
+      have_pose = true;
+    }
+    points.push_back(relative.apply(p));
+  }
+  return points;
+}
+
 }  // namespace
 
 CloudEvaluation evaluateCloudBag(const std::string& bag_path, const std::string& truth_path,
@@ -50,7 +74,7 @@ CloudEvaluation evaluateCloudBag(const std::string& bag_path, const std::string&
   evaluation.scenario = truth.scenario;
   evaluation.convention = truth.convention;
   evaluation.range_sigma_mm = 1e3 * truth.range_sigma;
-  std::vector<double> raw, two_pose, corrected, exact;
+  std::vector<double> raw, two_pose, corrected, exact, noise_floor;
   for (const rosbag::MessageInstance& message : rosbag::View(bag, rosbag::TopicQuery(cloud_topic))) {
     const auto cloud = message.instantiate<sensor_msgs::PointCloud2>();
     if (!cloud)
@@ -65,6 +89,7 @@ CloudEvaluation evaluateCloudBag(const std::string& bag_path, const std::string&
     ++evaluation.clouds;
 
     addDistances(world, reference, returnsOf(prepared), raw);
+    addDistances(world, reference, truthCorrected(prepared, truth, reference), noise_floor);
     for (ros_adapter::CloudProcessor* processor : {&ours, &per_point}) {
       const ros_adapter::CloudOutputs out = processor->correct(prepared, *mount, tf->motion());
       const ros_adapter::PreparedCloud corrected_cloud = ours.prepare(out.cloud);  // reads x y z back
@@ -94,6 +119,7 @@ CloudEvaluation evaluateCloudBag(const std::string& bag_path, const std::string&
   evaluation.two_pose = sim::errorStats(two_pose);
   evaluation.ours = sim::errorStats(corrected);
   evaluation.per_point = sim::errorStats(exact);
+  evaluation.truth_corrected = sim::errorStats(noise_floor);
   return evaluation;
 }
 

@@ -5,7 +5,8 @@
 //   deskew_metrics BAG TRUTH [--markdown] [--knot-interval S] [--rebin-gap-factor F] [--rebin-min-gap M]
 //                  [--figure-csv FILE] [--figure-scan K]
 //   deskew_metrics --cloud BAG TRUTH [--markdown]   (a multi-line bag of deskew_simulate --cloud-scenario:
-//                  raw, constant velocity between two poses, ours, one tf lookup per point)
+//                  raw, constant velocity between two poses, ours, one tf lookup per point, the noise
+//                  floor (corrected with the true trajectory) and ours / floor as a ratio of RMS)
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -33,16 +34,27 @@ std::string triple(const lidar_deskew::eval::ErrorStats& stats) {
   return text;
 }
 
+/// Our RMS over the noise floor's, "–" with noise off: the floor is then only float32 rounding of the
+/// coordinates (well under a micrometre), and a ratio to it says nothing.
+std::string oursOverFloor(const lidar_deskew::eval::CloudEvaluation& result) {
+  if (!(result.range_sigma_mm > 0.0) || !(result.truth_corrected.rms > 0.0))
+    return "–";
+  char text[32];
+  std::snprintf(text, sizeof text, "%.3f", result.ours.rms / result.truth_corrected.rms);
+  return text;
+}
+
 /// --cloud: a multi-line bag against its truth.
 int cloudMetrics(const std::string& bag_path, const std::string& truth_path, bool markdown) {
   using namespace lidar_deskew;
   const eval::CloudEvaluation result =
       eval::evaluateCloudBag(bag_path, truth_path, "/points", ros_adapter::DeskewParams());
   if (markdown) {
-    std::printf("| %s | %s | %zu | %.0f | %s | %s | %s | %s |\n", result.scenario.c_str(),
+    std::printf("| %s | %s | %zu | %.0f | %s | %s | %s | %s | %s | %s |\n", result.scenario.c_str(),
                 result.convention.c_str(), result.clouds, result.range_sigma_mm, triple(result.raw).c_str(),
                 triple(result.two_pose).c_str(), triple(result.ours).c_str(),
-                triple(result.per_point).c_str());
+                triple(result.per_point).c_str(), triple(result.truth_corrected).c_str(),
+                oursOverFloor(result).c_str());
   } else {
     std::printf("scenario        %s, %s (%zu clouds, range noise %.0f mm)\n", result.scenario.c_str(),
                 result.convention.c_str(), result.clouds, result.range_sigma_mm);
@@ -51,6 +63,9 @@ int cloudMetrics(const std::string& bag_path, const std::string& truth_path, boo
     std::printf("  two poses, constant v %s\n", triple(result.two_pose).c_str());
     std::printf("  ours                  %s\n", triple(result.ours).c_str());
     std::printf("  one lookup per point  %s\n", triple(result.per_point).c_str());
+    std::printf("  truth-corrected       %s  (the noise floor: the true trajectory)\n",
+                triple(result.truth_corrected).c_str());
+    std::printf("ours / floor (RMS)      %s\n", oursOverFloor(result).c_str());
   }
   return 0;
 }

@@ -1,7 +1,7 @@
 // Scores a simulated multi-line bag (sim/cloud_bag.h) against its truth: the raw clouds, a
 // constant-velocity correction between the sweep's first and last pose (what KISS-ICP-class pipelines
-// do), our correction (CloudProcessor with knots) and one tf lookup per point, on the same clouds and
-// the same tf buffer.
+// do), our correction (CloudProcessor with knots), one tf lookup per point, and the noise floor (the
+// same clouds corrected with the true trajectory), on the same clouds and the same tf buffer.
 #pragma once
 
 #include <string>
@@ -22,6 +22,10 @@ struct CloudEvaluation {
   sim::ErrorStats two_pose;   ///< interpolated (lerp + slerp) between tf's poses at the first and last return
   sim::ErrorStats ours;       ///< CloudProcessor, knots every knot_interval
   sim::ErrorStats per_point;  ///< CloudProcessor with exact: true (one tf lookup per point)
+  /// The noise floor: every return re-expressed at the reference time with the TRUE sensor poses (the
+  /// truth file's trajectory at the point's own time, relative to the one at the reference time),
+  /// plain Eigen, no tf and no MRPT. Only the range noise is left: the best any correction can do.
+  sim::ErrorStats truth_corrected;
 };
 
 /// Reads every /tf and /tf_static of the bag into one tf2 buffer, then scores every cloud on
