@@ -38,6 +38,14 @@ const ParamSpec kSpecs[] = {
      "clouds: unit of the time field; auto = decided from its values"},
     {"time_base", "string", "auto", "", kNoBound, kNoBound, false, "auto|header|absolute", false, false,
      "clouds: time values are offsets from header.stamp or absolute; auto = decided from its values"},
+    {"azimuth_timing", "bool", "false", "", kNoBound, kNoBound, false, "", false, false,
+     "clouds without a time field: time each point from its azimuth (spinning sensors); false = drop them"},
+    {"azimuth_direction", "string", "cw", "", kNoBound, kNoBound, false, "cw|ccw", false, false,
+     "clouds timed by azimuth: the spin seen from above (Velodyne, Ouster: cw)"},
+    {"azimuth_period", "double", "0.1", "s", 0.0, 60.0, true, "", false, false,
+     "clouds timed by azimuth: one revolution (10 Hz: 0.1)"},
+    {"azimuth_stamp_at", "string", "start", "", kNoBound, kNoBound, false, "start|end", false, false,
+     "clouds timed by azimuth: header.stamp is the first or the last point's time"},
     {"cloud_scan", "bool", "false", "", kNoBound, kNoBound, false, "", false, false,
      "clouds: also a planar LaserScan <points>_deskewed_scan of the corrected points in the height band"},
     {"scan_height_min", "double", "-0.1", "m", -100.0, 100.0, false, "", false, true,
@@ -198,6 +206,16 @@ DeskewParams DeskewParams::load(const ParamSource& source, const DeskewParams& b
     checkChoice("time_base", text);
     params.cloud_time.base = text;
   }
+  source.get("azimuth_timing", params.azimuth.enabled);
+  if (source.get("azimuth_direction", text)) {
+    checkChoice("azimuth_direction", text);
+    params.azimuth.direction = text;
+  }
+  source.get("azimuth_period", params.azimuth.period);
+  if (source.get("azimuth_stamp_at", text)) {
+    checkChoice("azimuth_stamp_at", text);
+    params.azimuth.stamp_at = text;
+  }
   source.get("cloud_scan", params.cloud_scan.enabled);
   source.get("scan_height_min", params.cloud_scan.height_min);
   source.get("scan_height_max", params.cloud_scan.height_max);
@@ -268,6 +286,9 @@ void DeskewParams::validate() const {
   checkNumber("rebin_min_gap", rebin.min_gap);
   checkNumber("rebin_gap_factor", rebin.gap_factor);
   checkNumber("diagnostics_period", diagnostics_period);
+  checkNumber("azimuth_period", azimuth.period);
+  if (azimuth.enabled && azimuth.period > timing.max_sweep_duration)
+    throw core::InvalidInput("azimuth_period", "must be at most max_sweep_duration with azimuth_timing on");
   checkNumber("scan_height_min", cloud_scan.height_min);
   checkNumber("scan_height_max", cloud_scan.height_max);
   checkNumber("scan_angle_min", cloud_scan.angle_min);
@@ -275,6 +296,7 @@ void DeskewParams::validate() const {
   checkNumber("scan_angle_increment", cloud_scan.angle_increment);
   checkNumber("scan_range_max", cloud_scan.range_max);
   // The core's own checks (the same bounds or wider).
+  azimuth.validate();
   timing.validate();
   deskew.validate();
   rebin.validate();

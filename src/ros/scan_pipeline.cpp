@@ -113,6 +113,10 @@ void SweepPipeline<Processor>::reconfigure(const DeskewParams& next) {
   fixed(next.cloud_time.field == params_.cloud_time.field, "time_field");
   fixed(next.cloud_time.unit == params_.cloud_time.unit, "time_unit");
   fixed(next.cloud_time.base == params_.cloud_time.base, "time_base");
+  fixed(next.azimuth.enabled == params_.azimuth.enabled, "azimuth_timing");
+  fixed(next.azimuth.direction == params_.azimuth.direction, "azimuth_direction");
+  fixed(next.azimuth.period == params_.azimuth.period, "azimuth_period");
+  fixed(next.azimuth.stamp_at == params_.azimuth.stamp_at, "azimuth_stamp_at");
   // A waiting scan's tf must stay in the cache for as long as it may wait.
   const double longest = tf_.cacheTime() - next.timing.max_sweep_duration - 1.0;
   if (next.tf_timeout > longest) {

@@ -75,6 +75,8 @@ Layout layoutOf(CloudConvention convention) {
               24};
     case CloudConvention::kLaserGeometry:
       return {{{"intensity", 12, PointField::FLOAT32}, {"stamps", 16, PointField::FLOAT32}}, 20};
+    case CloudConvention::kNoTime:
+      return {{{"intensity", 16, PointField::FLOAT32}, {"ring", 20, PointField::UINT16}}, 32};
   }
   throw std::invalid_argument("unknown cloud convention");
 }
@@ -136,17 +138,30 @@ std::string cloudConventionName(CloudConvention convention) {
       return "livox_custom";
     case CloudConvention::kLaserGeometry:
       return "laser_geometry";
+    case CloudConvention::kNoTime:
+      return "no_time";
   }
   throw std::invalid_argument("unknown cloud convention");
 }
 
+std::vector<std::string> cloudConventionNames() {
+  std::vector<std::string> names;
+  for (const CloudConvention convention : allCloudConventions())
+    names.push_back(cloudConventionName(convention));
+  names.push_back(cloudConventionName(CloudConvention::kNoTime));
+  return names;
+}
+
 CloudConvention cloudConventionFromName(const std::string& name) {
+  if (name == cloudConventionName(CloudConvention::kNoTime))
+    return CloudConvention::kNoTime;
   std::string names;
   for (const CloudConvention convention : allCloudConventions()) {
     if (cloudConventionName(convention) == name)
       return convention;
-    names += " " + cloudConventionName(convention);
   }
+  for (const std::string& known : cloudConventionNames())
+    names += " " + known;
   throw std::invalid_argument("unknown cloud convention '" + name + "'; known:" + names);
 }
 

@@ -54,8 +54,8 @@ int main(int argc, char** argv) {
         std::printf("%s\n", scenario.name.c_str());
       return 0;
     } else if (arg == "--list-conventions") {
-      for (const sim::CloudConvention convention : sim::allCloudConventions())
-        std::printf("%s\n", sim::cloudConventionName(convention).c_str());
+      for (const std::string& name : sim::cloudConventionNames())
+        std::printf("%s\n", name.c_str());
       return 0;
     } else if (arg == "--scenario" && has_value) {
       scenario_name = argv[++a];

@@ -79,6 +79,8 @@ ExpectedLayout expectedLayout(CloudConvention convention) {
               "offset_time"};
     case CloudConvention::kLaserGeometry:
       return {{{"intensity", 12, F::FLOAT32}, {"stamps", 16, F::FLOAT32}}, 20, "stamps"};
+    case CloudConvention::kNoTime:  // velodyne_pointcloud's PointXYZIR: x y z, padding, intensity, ring
+      return {{{"intensity", 16, F::FLOAT32}, {"ring", 20, F::UINT16}}, 32, ""};
   }
   return {};
 }
@@ -122,6 +124,8 @@ Decoded decodeTime(const sensor_msgs::PointCloud2& cloud, std::size_t point, Clo
     }
     case CloudConvention::kLivox2:  // absolute [ns]: a double holds 256 ns at 1.7e18 ns
       return {(read<double>(cloud, point, 18) - static_cast<double>(epoch)) * 1e-9, 0.5e-6};
+    case CloudConvention::kNoTime:
+      break;  // nothing to decode (not among allCloudConventions())
   }
   return {0.0, 0.0};
 }
@@ -328,10 +332,43 @@ INSTANTIATE_TEST_SUITE_P(AllConventions, CloudBagTest, ::testing::ValuesIn(allCl
                          });
 
 TEST(CloudBag, ConventionNamesRoundTrip) {
-  EXPECT_EQ(allCloudConventions().size(), 9u);
+  EXPECT_EQ(allCloudConventions().size(), 9u);  // the ones with a time field
   for (const CloudConvention convention : allCloudConventions())
     EXPECT_EQ(cloudConventionFromName(cloudConventionName(convention)), convention);
+  EXPECT_EQ(cloudConventionFromName("no_time"), CloudConvention::kNoTime);
+  const std::vector<std::string> names = cloudConventionNames();
+  ASSERT_EQ(names.size(), 10u);
+  EXPECT_EQ(names.front(), "ouster");
+  EXPECT_EQ(names.back(), "no_time");
   EXPECT_THROW(cloudConventionFromName("velodyne"), std::invalid_argument);
+  EXPECT_THROW(cloudTimeField(CloudConvention::kNoTime), std::invalid_argument);
+}
+
+// The layout without a time field: x y z float32, intensity and ring as velodyne_pointcloud's PointXYZIR
+// (32 B, padded), dense in firing order, stamped at the first point.
+TEST(CloudBag, NoTimeConventionHasNoTimeField) {
+  const CloudScenario scenario = findCloudScenario("VLP16/rough/arc");
+  const SimulatedCloud sweep =
+      simulateSweep(World3::hall(), *scenario.trajectory(), scenario.mount, scenario.lidar, 0.25);
+  const core::TimeNs epoch = 1'700'000'000'000'000'000;
+  const sensor_msgs::PointCloud2 cloud = toPointCloud2(sweep, CloudConvention::kNoTime, epoch, "lidar");
+  const ExpectedLayout layout = expectedLayout(CloudConvention::kNoTime);
+  ASSERT_EQ(cloud.fields.size(), 5u);
+  for (std::size_t f = 3; f < cloud.fields.size(); ++f) {
+    EXPECT_EQ(cloud.fields[f].name, layout.fields[f - 3].name);
+    EXPECT_EQ(cloud.fields[f].offset, layout.fields[f - 3].offset);
+    EXPECT_EQ(cloud.fields[f].datatype, layout.fields[f - 3].datatype);
+  }
+  EXPECT_EQ(cloud.point_step, 32u);
+  EXPECT_EQ(cloud.height, 1u);
+  ASSERT_EQ(cloud.width, sweep.points.size());
+  EXPECT_EQ(static_cast<core::TimeNs>(cloud.header.stamp.toNSec()), epoch + 250'000'000);  // first point
+  for (std::size_t i = 0; i < sweep.points.size(); i += 97) {
+    EXPECT_EQ(read<float>(cloud, i, 0), static_cast<float>(sweep.points[i].position.x()));
+    EXPECT_EQ(read<float>(cloud, i, 8), static_cast<float>(sweep.points[i].position.z()));
+    EXPECT_EQ(read<float>(cloud, i, 16), 100.0f);
+    EXPECT_EQ(read<std::uint16_t>(cloud, i, 20), sweep.points[i].ring);
+  }
 }
 
 TEST(CloudBag, OrganizedCloudKeepsNoReturnsAsZeros) {

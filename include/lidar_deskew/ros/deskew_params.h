@@ -7,6 +7,7 @@
 #include "lidar_deskew/core/deskew.h"
 #include "lidar_deskew/core/rebin.h"
 #include "lidar_deskew/core/scan.h"
+#include "lidar_deskew/ros/cloud_azimuth.h"
 #include "lidar_deskew/ros/cloud_timing.h"
 #include "lidar_deskew/ros/node_handle_params.h"
 #include "lidar_deskew/ros/param_source.h"
@@ -43,6 +44,8 @@ struct DeskewParams {
   core::DeskewConfig deskew;             ///< reference, knot_interval [s] (0 when exact)
   core::RebinConfig rebin;               ///< rebin_min_gap [m], rebin_gap_factor
   CloudTimeConfig cloud_time;            ///< clouds: time_field, time_unit, time_base
+  /// Clouds without a time field: azimuth_timing, azimuth_direction, azimuth_period [s], azimuth_stamp_at.
+  AzimuthTiming azimuth;
   /// Clouds: the planar LaserScan of the corrected points (pointcloud_to_laserscan's job, after the
   /// correction): cloud_scan, scan_height_min/max [m], scan_angle_min/max/increment [rad], scan_range_max
   /// [m].

@@ -34,6 +34,9 @@ namespace lidar_deskew::sim {
 ///   reflectivity f32 @12, tag u8 @16, line u8 @17, offset_time @20; 24 B.
 /// - kLaserGeometry (projectLaser with timestamps): `stamps` float32 s rel.; stamp = first point;
 ///   intensity f32 @12, stamps @16; 20 B.
+/// - kNoTime (velodyne_pointcloud's PointXYZIR, before it had a time field; or any XYZI cloud): no
+///   time field; stamp = first point; intensity f32 @16, ring u16 @20; 32 B. Only azimuth timing can
+///   correct it (docs/CLOUDS.md); without it such clouds are dropped with an error naming their fields.
 ///
 /// header.stamp is on whole nanoseconds, rounded down (start, first point) or up (last point), so that
 /// relative times never change sign. All but kOuster are dense (height 1, returns only, in firing order),
@@ -48,17 +51,24 @@ enum class CloudConvention {
   kLivox2,
   kAutoware,
   kLivoxCustom,
-  kLaserGeometry
+  kLaserGeometry,
+  kNoTime
 };
 
-/// Every convention, in the enum's order.
+/// Every convention with a per-point time field, in the enum's order: the drivers' layouts that are
+/// corrected with no configuration, which the tests iterate. kNoTime is deliberately not among them (it
+/// needs azimuth timing configured).
 const std::vector<CloudConvention>& allCloudConventions();
+/// The names of allCloudConventions() and then "no_time".
+std::vector<std::string> cloudConventionNames();
 /// "ouster", "velodyne_first", "velodyne_last", "hesai", "robosense", "livox2", "autoware",
-/// "livox_custom", "laser_geometry".
+/// "livox_custom", "laser_geometry", "no_time".
 std::string cloudConventionName(CloudConvention convention);
-/// The convention of that name; throws std::invalid_argument listing the names otherwise.
+/// The convention of that name (cloudConventionNames()); throws std::invalid_argument listing the
+/// names otherwise.
 CloudConvention cloudConventionFromName(const std::string& name);
-/// The name of the per-point time field of the convention ("t", "time", ...).
+/// The name of the per-point time field of the convention ("t", "time", ...); throws
+/// std::invalid_argument for kNoTime.
 std::string cloudTimeField(CloudConvention convention);
 /// Whether the convention's clouds are organized (height = rings).
 inline bool isOrganized(CloudConvention convention) {
