@@ -1,8 +1,11 @@
 // Per-point cost of correcting a multi-line cloud (Google Benchmark): an OS1-64 sweep (64 x 1024 =
 // 65,536 points, organized, Ouster's layout) on a 6 m/s arc, tf at 50 Hz through a real TfFeed.
-// - BM_CloudCore: the core alone (ScanDeskewer::deskewPoints on prepared points and times);
+// - BM_CloudCore: the core alone (ScanDeskewer::deskewFirings on the prepared returns and firings);
+// - BM_CloudCorePerPointTimes: the same points through deskewPoints (a time per point: read row by row,
+//   no two consecutive points share one, so each gets its own map);
 // - BM_CloudNodeletPath: what the nodelet and deskew_bag do per cloud: parse (layout, time field, every
-//   point's time), correct, build the output message.
+//   point's time), correct, build the output message; BM_CloudPrepare and BM_CloudCorrectAndBuild its
+//   two halves.
 // Prints Google Benchmark's table with ns_per_point. Run: bench/run.sh cloud (pins to one core).
 #include <benchmark/benchmark.h>
 
@@ -48,9 +51,28 @@ void BM_CloudCore(benchmark::State& state) {
   Fixture& f = fixture();
   ros_adapter::CloudProcessor processor{ros_adapter::DeskewParams()};
   const ros_adapter::PreparedCloud prepared = processor.prepare(f.cloud);
+  core::ScanDeskewer deskewer;
+  std::vector<Eigen::Vector3d> corrected;
+  for (auto _ : state) {
+    deskewer.deskewFirings(prepared.points, prepared.firings, prepared.first, f.mount, f.feed.motion(),
+                           corrected);
+    benchmark::DoNotOptimize(corrected.data());
+  }
+  state.counters["points"] = f.points;
+  state.counters["ns_per_point"] = benchmark::Counter(
+      f.points, benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
+}
+BENCHMARK(BM_CloudCore)->Unit(benchmark::kMillisecond);
+
+// The same points through the per-point-times entry (deskewPoints: every point with its own offset,
+// runs of one time found by the core).
+void BM_CloudCorePerPointTimes(benchmark::State& state) {
+  Fixture& f = fixture();
+  ros_adapter::CloudProcessor processor{ros_adapter::DeskewParams()};
+  const ros_adapter::PreparedCloud prepared = processor.prepare(f.cloud);
   std::vector<double> offsets(prepared.points.size());
   for (std::size_t i = 0; i < offsets.size(); ++i)
-    offsets[i] = core::nsToSeconds(prepared.times[i] - prepared.first);
+    offsets[i] = core::nsToSeconds(prepared.timeOf(i) - prepared.first);
   core::ScanDeskewer deskewer;
   std::vector<Eigen::Vector3d> corrected;
   std::vector<double> corrected_offsets;
@@ -64,7 +86,7 @@ void BM_CloudCore(benchmark::State& state) {
   state.counters["ns_per_point"] = benchmark::Counter(
       f.points, benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
 }
-BENCHMARK(BM_CloudCore)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_CloudCorePerPointTimes)->Unit(benchmark::kMillisecond);
 
 void BM_CloudNodeletPath(benchmark::State& state) {
   Fixture& f = fixture();
@@ -79,6 +101,33 @@ void BM_CloudNodeletPath(benchmark::State& state) {
       f.points, benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
 }
 BENCHMARK(BM_CloudNodeletPath)->Unit(benchmark::kMillisecond);
+
+// Its two halves: parse (layout, returns, time field, firings) ...
+void BM_CloudPrepare(benchmark::State& state) {
+  Fixture& f = fixture();
+  ros_adapter::CloudProcessor processor{ros_adapter::DeskewParams()};
+  for (auto _ : state) {
+    const ros_adapter::PreparedCloud prepared = processor.prepare(f.cloud);
+    benchmark::DoNotOptimize(prepared.points.data());
+  }
+  state.counters["ns_per_point"] = benchmark::Counter(
+      f.points, benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
+}
+BENCHMARK(BM_CloudPrepare)->Unit(benchmark::kMillisecond);
+
+// ... and correct (the core) and build the output message.
+void BM_CloudCorrectAndBuild(benchmark::State& state) {
+  Fixture& f = fixture();
+  ros_adapter::CloudProcessor processor{ros_adapter::DeskewParams()};
+  const ros_adapter::PreparedCloud prepared = processor.prepare(f.cloud);
+  for (auto _ : state) {
+    const ros_adapter::CloudOutputs outputs = processor.correct(prepared, f.mount, f.feed.motion());
+    benchmark::DoNotOptimize(outputs.cloud.get());
+  }
+  state.counters["ns_per_point"] = benchmark::Counter(
+      f.points, benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
+}
+BENCHMARK(BM_CloudCorrectAndBuild)->Unit(benchmark::kMillisecond);
 
 }  // namespace
 

@@ -63,6 +63,10 @@ class ExactChain {
   const MotionSource& motion_;
 };
 
+InvalidInput beyondTheFirings(std::size_t count) {
+  return InvalidInput("firings", "name a firing beyond the " + std::to_string(count) + " there are");
+}
+
 }  // namespace
 
 // ---------------------------------------------------------------------------------------------------
@@ -140,6 +144,17 @@ void KnotTrajectory::build(TimeNs origin, double span_begin, double span_end, Ti
     segment.left_yaw_cos = segment.left_rotation(0, 0);
     segment.left_yaw_sin = segment.left_rotation(1, 0);
     segment.yaw_step = rotation_vector.z();
+    Eigen::Matrix3d cross;
+    cross << 0.0, -segment.axis.z(), segment.axis.y(), segment.axis.z(), 0.0, -segment.axis.x(),
+        -segment.axis.y(), segment.axis.x(), 0.0;
+    const Eigen::Matrix3d left_cross = segment.left_rotation * cross;
+    const Eigen::Matrix3d left_cross2 = left_cross * cross;
+    segment.rotation_base = segment.left_rotation * mount_rotation_;
+    segment.rotation_sine = left_cross * mount_rotation_;
+    segment.rotation_versine = left_cross2 * mount_rotation_;
+    segment.translation_base = segment.left_rotation * mount_translation_ + segment.left_translation;
+    segment.translation_sine = left_cross * mount_translation_;
+    segment.translation_versine = left_cross2 * mount_translation_;
     planar_ = planar_ && rotatesAboutZOnly(segment.left_rotation);
   }
   hint_ = 0;
@@ -175,20 +190,13 @@ void KnotTrajectory::transformAt(double time_offset, Eigen::Matrix3d& rotation,
   const Segment& segment = segments_[segmentFor(time_offset)];
   const double fraction =
       std::clamp((time_offset - segment.begin_offset) * segment.inverse_duration, 0.0, 1.0);
-  // Exp(s angle axis) by Rodrigues: I + sin K + versin K^2, K the cross-product matrix of the axis.
-  Eigen::Matrix3d turn = Eigen::Matrix3d::Identity();
-  if (segment.angle != 0.0) {
-    double sine, versine;
+  // Exp(s angle axis) by Rodrigues, I + sin K + versin K^2, folded into the segment's products.
+  double sine = 0.0, versine = 0.0;
+  if (segment.angle != 0.0)
     sinAndVersine(fraction * segment.angle, sine, versine);
-    Eigen::Matrix3d cross;
-    cross << 0.0, -segment.axis.z(), segment.axis.y(), segment.axis.z(), 0.0, -segment.axis.x(),
-        -segment.axis.y(), segment.axis.x(), 0.0;
-    turn += sine * cross + versine * cross * cross;
-  }
-  const Eigen::Matrix3d left_turn = segment.left_rotation * turn;
-  rotation = left_turn * mount_rotation_;
-  translation =
-      left_turn * mount_translation_ + segment.left_translation + fraction * segment.translation_step;
+  rotation = segment.rotation_base + sine * segment.rotation_sine + versine * segment.rotation_versine;
+  translation = segment.translation_base + sine * segment.translation_sine +
+                versine * segment.translation_versine + fraction * segment.translation_step;
 }
 
 void KnotTrajectory::correctPlanarScan(const PlanarScan& scan, double beam_period,
@@ -382,15 +390,49 @@ void ScanDeskewer::correctScan(const PlanarScan& scan, const BeamTiming& timing,
   });
 }
 
+TimeNs ScanDeskewer::deskewFirings(const std::vector<Eigen::Vector3d>& points, const Firings& firings,
+                                   TimeNs origin, const mrpt::poses::CPose3D& mount,
+                                   const MotionSource& motion, std::vector<Eigen::Vector3d>& corrected) {
+  try {
+    return correctFirings(points, firings, origin, mount, motion, corrected);
+  } catch (...) {
+    corrected.clear();
+    throw;
+  }
+}
+
 TimeNs ScanDeskewer::deskewPoints(const std::vector<Eigen::Vector3d>& points,
                                   const std::vector<double>& time_offsets, TimeNs origin,
                                   const mrpt::poses::CPose3D& mount, const MotionSource& motion,
                                   std::vector<Eigen::Vector3d>& corrected,
                                   std::vector<double>& corrected_offsets,
                                   std::vector<std::uint32_t>& kept_indices) {
+  corrected_offsets.clear();
+  kept_indices.clear();
   try {
-    return correctPoints(points, time_offsets, origin, mount, motion, corrected, corrected_offsets,
-                         kept_indices);
+    if (points.size() != time_offsets.size()) {
+      throw InvalidInput("time_offsets", "has " + std::to_string(time_offsets.size()) + " values for " +
+                                             std::to_string(points.size()) + " points");
+    }
+    // The finite points, consecutive ones of one time as one firing.
+    kept_points_.clear();
+    kept_firings_.clear();
+    for (std::size_t i = 0; i < points.size(); ++i) {
+      if (!points[i].allFinite() || !std::isfinite(time_offsets[i]))
+        continue;
+      if (kept_points_.empty() || kept_firings_.offsets.back() != time_offsets[i])
+        kept_firings_.add(time_offsets[i]);
+      kept_firings_.of_point.push_back(static_cast<std::uint32_t>(kept_firings_.offsets.size() - 1));
+      kept_indices.push_back(static_cast<std::uint32_t>(i));
+      kept_points_.push_back(points[i]);
+    }
+    const TimeNs reference_time =
+        correctFirings(kept_points_, kept_firings_, origin, mount, motion, corrected);
+    const double exact_reference_offset = nsToSeconds(reference_time - origin);
+    corrected_offsets.reserve(kept_indices.size());
+    for (std::uint32_t i : kept_indices)
+      corrected_offsets.push_back(time_offsets[i] - exact_reference_offset);
+    return reference_time;
   } catch (...) {
     corrected.clear();
     corrected_offsets.clear();
@@ -399,65 +441,54 @@ TimeNs ScanDeskewer::deskewPoints(const std::vector<Eigen::Vector3d>& points,
   }
 }
 
-TimeNs ScanDeskewer::correctPoints(const std::vector<Eigen::Vector3d>& points,
-                                   const std::vector<double>& time_offsets, TimeNs origin,
-                                   const mrpt::poses::CPose3D& mount, const MotionSource& motion,
-                                   std::vector<Eigen::Vector3d>& corrected,
-                                   std::vector<double>& corrected_offsets,
-                                   std::vector<std::uint32_t>& kept_indices) {
+TimeNs ScanDeskewer::correctFirings(const std::vector<Eigen::Vector3d>& points, const Firings& firings,
+                                    TimeNs origin, const mrpt::poses::CPose3D& mount,
+                                    const MotionSource& motion, std::vector<Eigen::Vector3d>& corrected) {
   corrected.clear();
-  corrected_offsets.clear();
-  kept_indices.clear();
-  if (points.size() != time_offsets.size()) {
-    throw InvalidInput("time_offsets", "has " + std::to_string(time_offsets.size()) + " values for " +
-                                           std::to_string(points.size()) + " points");
-  }
+  const std::size_t count = firings.offsets.size();
+  if (firings.of_point.size() != points.size())
+    throw InvalidInput("firings", "give " + std::to_string(firings.of_point.size()) +
+                                      " points a firing, not " + std::to_string(points.size()));
   double earliest = INFINITY;
   double latest = -INFINITY;
-  for (std::size_t i = 0; i < points.size(); ++i) {
-    if (!points[i].allFinite() || !std::isfinite(time_offsets[i]))
-      continue;
-    kept_indices.push_back(static_cast<std::uint32_t>(i));
-    earliest = std::min(earliest, time_offsets[i]);
-    latest = std::max(latest, time_offsets[i]);
+  for (std::size_t f = 0; f < count; ++f) {
+    if (!std::isfinite(firings.offsets[f]))
+      throw InvalidInput("firings", "offset " + std::to_string(f) + " is not finite");
+    earliest = std::min(earliest, firings.offsets[f]);
+    latest = std::max(latest, firings.offsets[f]);
   }
-  if (kept_indices.empty())
+  if (points.empty())
     return origin;
   const double reference_offset = config_.reference == Reference::kStart ? earliest
                                   : config_.reference == Reference::kEnd ? latest
                                                                          : 0.5 * (earliest + latest);
   const TimeNs reference_time = origin + secondsToNs(reference_offset);
-  const double exact_reference_offset = nsToSeconds(reference_time - origin);
-  corrected.reserve(kept_indices.size());
-  corrected_offsets.reserve(kept_indices.size());
+  corrected.resize(points.size());
+  const Eigen::Vector3d* const in = points.data();
+  Eigen::Vector3d* const out = corrected.data();
+  const std::uint32_t* const firing_of = firings.of_point.data();
+  const double* const offsets = firings.offsets.data();
 
   if (config_.knot_interval == 0.0) {
     const ExactChain chain(reference_time, mount, motion);
-    for (std::uint32_t i : kept_indices) {
-      corrected.push_back(chain.apply(origin + secondsToNs(time_offsets[i]), points[i]));
-      corrected_offsets.push_back(time_offsets[i] - exact_reference_offset);
+    for (std::size_t i = 0; i < points.size(); ++i) {
+      if (firing_of[i] >= count)
+        throw beyondTheFirings(count);
+      out[i] = chain.apply(origin + secondsToNs(offsets[firing_of[i]]), in[i]);
     }
     return reference_time;
   }
   trajectory_.build(origin, earliest, latest, reference_time, config_.knot_interval, mount, motion);
-  // Points of one firing time (a multi-line LIDAR's column) share one affine map, built once for the
-  // run; a point alone at its time is mapped directly.
-  Eigen::Matrix3d rotation;
-  Eigen::Vector3d translation;
-  double mapped = NAN;  // the time offset `rotation` and `translation` are for
-  for (std::size_t k = 0; k < kept_indices.size(); ++k) {
-    const std::uint32_t i = kept_indices[k];
-    const double offset = time_offsets[i];
-    if (offset == mapped) {
-      corrected.push_back(rotation * points[i] + translation);
-    } else if (k + 1 < kept_indices.size() && time_offsets[kept_indices[k + 1]] == offset) {
-      trajectory_.transformAt(offset, rotation, translation);
-      mapped = offset;
-      corrected.push_back(rotation * points[i] + translation);
-    } else {
-      corrected.push_back(trajectory_.apply(offset, points[i]));
-    }
-    corrected_offsets.push_back(offset - exact_reference_offset);
+  // The points of one firing share one affine map, built once.
+  firing_maps_.resize(count);
+  for (std::size_t f = 0; f < count; ++f)
+    trajectory_.transformAt(offsets[f], firing_maps_[f].rotation, firing_maps_[f].translation);
+  const FiringMap* const maps = firing_maps_.data();
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    if (firing_of[i] >= count)
+      throw beyondTheFirings(count);
+    const FiringMap& map = maps[firing_of[i]];
+    out[i].noalias() = map.rotation * in[i] + map.translation;
   }
   return reference_time;
 }

@@ -31,7 +31,7 @@ void addDistances(const sim::World3& world, const sim::Pose3& pose,
 }
 
 /// The returns of `prepared` moved to the reference time with the true sensor motion: point i, measured
-/// in the sensor frame at times[i], seen from the true sensor pose at the reference time.
+/// in the sensor frame at its own time, seen from the true sensor pose at the reference time.
 std::vector<Eigen::Vector3d> truthCorrected(const ros_adapter::PreparedCloud& prepared,
                                             const sim::CloudTruth& truth, const sim::Pose3& reference) {
   const sim::Pose3 to_reference = reference.inverse();
@@ -44,8 +44,8 @@ std::vector<Eigen::Vector3d> truthCorrected(const ros_adapter::PreparedCloud& pr
     const Eigen::Vector3d& p = prepared.points[i];
     if (!p.allFinite())
       continue;
-    if (!have_pose || prepared.times[i] != pose_time) {
-      pose_time = prepared.times[i];
+    if (!have_pose || prepared.timeOf(i) != pose_time) {
+      pose_time = prepared.timeOf(i);
       relative = to_reference.compose(truth.sensorPose(pose_time));
       have_pose = true;
     }
@@ -105,7 +105,7 @@ CloudEvaluation evaluateCloudBag(const std::string& bag_path, const std::string&
       if (!p.allFinite())
         continue;
       const mrpt::poses::CPose3D at =
-          core::interpolatePose(first, last, static_cast<double>(prepared.times[i] - prepared.first) / span);
+          core::interpolatePose(first, last, static_cast<double>(prepared.timeOf(i) - prepared.first) / span);
       const mrpt::poses::CPose3D relative = at - first;  // the sensor at its time, seen from the first
       mrpt::math::TPoint3D moved;
       relative.composePoint(p.x(), p.y(), p.z(), moved.x, moved.y, moved.z);

@@ -6,7 +6,9 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <type_traits>
 
+#include "lidar_deskew/ros/cloud_azimuth.h"
 #include "lidar_deskew/ros/conversions.h"
 #include "lidar_deskew/ros/scan_processor.h"
 
@@ -27,26 +29,36 @@ const PointField& coordinateField(const sensor_msgs::PointCloud2& cloud, const s
   throw core::InvalidInput("fields", "no " + name + " field");
 }
 
-void writeNumber(std::uint8_t* at, std::uint8_t datatype, double value) {
-  const auto write = [at](auto typed) { std::memcpy(at, &typed, sizeof typed); };
-  switch (datatype) {
-    case PointField::INT8:
-      return write(static_cast<std::int8_t>(value));
-    case PointField::UINT8:
-      return write(static_cast<std::uint8_t>(value));
-    case PointField::INT16:
-      return write(static_cast<std::int16_t>(value));
-    case PointField::UINT16:
-      return write(static_cast<std::uint16_t>(value));
-    case PointField::INT32:
-      return write(static_cast<std::int32_t>(value));
-    case PointField::UINT32:
-      return write(static_cast<std::uint32_t>(value));
-    case PointField::FLOAT32:
-      return write(static_cast<float>(value));
-    case PointField::FLOAT64:
-      return write(value);
+/// The x, y and z fields, of one datatype.
+struct Coordinates {
+  explicit Coordinates(const sensor_msgs::PointCloud2& cloud)
+      : x(coordinateField(cloud, "x")), y(coordinateField(cloud, "y")), z(coordinateField(cloud, "z")) {
+    if (y.datatype != x.datatype || z.datatype != x.datatype)
+      throw core::InvalidInput("fields", "x, y and z differ in datatype");
   }
+  /// Calls visit(T{}) with their C++ type.
+  template <typename Visit>
+  void withType(Visit&& visit) const {
+    if (x.datatype == PointField::FLOAT32)
+      visit(float{});
+    else
+      visit(double{});
+  }
+  const PointField& x;
+  const PointField& y;
+  const PointField& z;
+};
+
+template <typename T>
+T load(const std::uint8_t* at) {
+  T value;
+  std::memcpy(&value, at, sizeof value);
+  return value;
+}
+
+template <typename T>
+void store(std::uint8_t* at, T value) {
+  std::memcpy(at, &value, sizeof value);
 }
 
 }  // namespace
@@ -62,87 +74,213 @@ CloudProcessor::CloudProcessor(const DeskewParams& params)
     throw core::InvalidInput("scan_angle_max", "must be above scan_angle_min");
 }
 
+namespace {
+
+constexpr std::uint32_t kNoFiring = std::numeric_limits<std::uint32_t>::max();
+
+/// Groups returns by their time value as they are read: consecutive returns of one value, and in an
+/// organized cloud (read row by row) the returns of a column that share its value (a multi-line
+/// LIDAR's column fires at once).
+class FiringGrouper {
+ public:
+  /// `columns`: the organized cloud's width; 0 for a dense cloud.
+  explicit FiringGrouper(std::size_t columns) : of_column_(columns, kNoFiring) {}
+
+  /// The firing of a return of time value `value` in column `column`.
+  std::uint32_t firingOf(double value, std::uint32_t column) {
+    if (value == last_value_ && last_ != kNoFiring)
+      return last_;
+    std::uint32_t firing = of_column_.empty() ? kNoFiring : of_column_[column];
+    if (firing == kNoFiring || values_[firing] != value) {
+      firing = static_cast<std::uint32_t>(values_.size());
+      values_.push_back(value);
+    }
+    if (!of_column_.empty())
+      of_column_[column] = firing;
+    last_ = firing;
+    last_value_ = value;
+    return firing;
+  }
+  /// The value of each firing.
+  const std::vector<double>& values() const { return values_; }
+
+ private:
+  std::vector<std::uint32_t> of_column_;
+  std::vector<double> values_;
+  std::uint32_t last_ = kNoFiring;
+  double last_value_ = 0.0;
+};
+
+/// Reads the returns of `cloud` (finite coordinates of type T, not exactly the origin: range 0 is "no
+/// return" for Ouster and others) in the cloud's order into `prepared` (points, byte offsets and, by
+/// the value of their time field of type TimeType, their firings; void: not read).
+template <typename T, typename TimeType>
+void readReturns(const sensor_msgs::PointCloud2& cloud, const Coordinates& xyz, std::uint32_t time_offset,
+                 PreparedCloud& prepared, FiringGrouper& grouper) {
+  const std::size_t count = static_cast<std::size_t>(cloud.width) * cloud.height;
+  prepared.points.resize(count);
+  prepared.byte_offsets.resize(count);
+  prepared.firings.of_point.resize(std::is_void_v<TimeType> ? 0 : count);
+  const std::uint8_t* const data = cloud.data.data();
+  const std::uint32_t x = xyz.x.offset, y = xyz.y.offset, z = xyz.z.offset;
+  Eigen::Vector3d* const points = prepared.points.data();
+  std::uint32_t* const byte_offsets = prepared.byte_offsets.data();
+  std::uint32_t* const firings = prepared.firings.of_point.data();
+  std::size_t returns = 0;
+  for (std::uint32_t row = 0; row < cloud.height; ++row) {
+    for (std::uint32_t column = 0; column < cloud.width; ++column) {
+      const auto at = static_cast<std::uint32_t>(row * cloud.row_step + column * cloud.point_step);
+      const std::uint8_t* const point = data + at;
+      const Eigen::Vector3d p(load<T>(point + x), load<T>(point + y), load<T>(point + z));
+      if (!p.allFinite() || p.isZero(0.0))
+        continue;
+      points[returns] = p;
+      byte_offsets[returns] = at;
+      if constexpr (!std::is_void_v<TimeType>)
+        firings[returns] = grouper.firingOf(static_cast<double>(load<TimeType>(point + time_offset)), column);
+      ++returns;
+    }
+  }
+  prepared.points.resize(returns);
+  prepared.byte_offsets.resize(returns);
+  prepared.firings.of_point.resize(std::is_void_v<TimeType> ? 0 : returns);
+}
+
+/// Writes each return's corrected position (x y z of type T) at its byte offset in `output`, and
+/// `time_value` into its time field (of type TimeType; none for void).
+template <typename T, typename TimeType>
+void writeReturns(const Coordinates& xyz, std::uint32_t time_offset, double time_value,
+                  const std::vector<std::uint32_t>& byte_offsets,
+                  const std::vector<Eigen::Vector3d>& corrected, sensor_msgs::PointCloud2& output) {
+  std::uint8_t* const data = output.data.data();
+  const std::uint32_t x = xyz.x.offset, y = xyz.y.offset, z = xyz.z.offset;
+  for (std::size_t k = 0; k < corrected.size(); ++k) {
+    std::uint8_t* const point = data + byte_offsets[k];
+    store(point + x, static_cast<T>(corrected[k].x()));
+    store(point + y, static_cast<T>(corrected[k].y()));
+    store(point + z, static_cast<T>(corrected[k].z()));
+    if constexpr (!std::is_void_v<TimeType>)
+      store(point + time_offset, static_cast<TimeType>(time_value));
+  }
+}
+
+}  // namespace
+
 PreparedCloud CloudProcessor::prepare(const sensor_msgs::PointCloud2::ConstPtr& message) const {
   const sensor_msgs::PointCloud2& cloud = *message;
   if (cloud.header.frame_id.empty())
     throw core::InvalidInput("header.frame_id", "is empty");
   checkCloudLayout(cloud);
-  const PointField& x = coordinateField(cloud, "x");
-  const PointField& y = coordinateField(cloud, "y");
-  const PointField& z = coordinateField(cloud, "z");
+  const Coordinates xyz(cloud);
+  const PointField* const time_field = timeFieldOf(cloud, time_config_);
   PreparedCloud prepared;
   prepared.message = message;
-  // An organized cloud is taken column by column: the points of one column share a firing time, and
-  // the core then maps each column's points with one transform. Entry j of points and times is the
-  // cloud's point order[j].
-  const std::size_t count = static_cast<std::size_t>(cloud.width) * cloud.height;
-  const bool by_column = cloud.height > 1;
-  const auto entryOf = [&](std::size_t i) {
-    return by_column ? (i % cloud.width) * cloud.height + i / cloud.width : i;
-  };
-  if (by_column)
-    prepared.order.resize(count);
-  prepared.points.resize(count);
-  prepared.times.resize(count);
-  // Returns: finite coordinates, not exactly the origin (range 0: "no return" for Ouster and others).
-  // Only their times count; a no-return point may carry any time, or none.
-  std::vector<bool> is_return(count);
-  for (std::size_t i = 0; i < count; ++i) {
-    const std::size_t j = entryOf(i);
-    if (by_column)
-      prepared.order[j] = static_cast<std::uint32_t>(i);
-    const std::uint8_t* point = &cloud.data[pointOffset(cloud, i)];
-    Eigen::Vector3d& p = prepared.points[j];
-    p = {readNumber(point + x.offset, x.datatype), readNumber(point + y.offset, y.datatype),
-         readNumber(point + z.offset, z.datatype)};
-    is_return[i] = p.allFinite() && !p.isZero(0.0);
-    if (!is_return[i])
-      p.setConstant(std::numeric_limits<double>::quiet_NaN());
+  prepared.by_azimuth = time_field == nullptr && params_.azimuth.enabled;
+  if (time_field == nullptr && !prepared.by_azimuth)
+    throw noTimeField(cloud, time_config_);
+
+  // One pass over the data: the returns, grouped into firings by their time field's value. Only the
+  // returns' times count: a no-return point may carry any time, or none.
+  const bool organized = cloud.height > 1;
+  FiringGrouper grouper(organized ? cloud.width : 0);
+  xyz.withType([&](auto coordinate) {
+    using T = decltype(coordinate);
+    if (time_field == nullptr) {
+      readReturns<T, void>(cloud, xyz, 0, prepared, grouper);
+      return;
+    }
+    withFieldType(time_field->datatype, [&](auto time) {
+      readReturns<T, decltype(time)>(cloud, xyz, time_field->offset, prepared, grouper);
+    });
+  });
+  const std::size_t returns = prepared.points.size();
+  const core::TimeNs stamp = toNs(cloud.header.stamp);
+  if (prepared.by_azimuth) {
+    // Offsets [s] from the stamp, as a float64 field in seconds would hold them.
+    std::vector<double> offsets;
+    azimuthValues(prepared, offsets);
+    prepared.firings.of_point.resize(returns);
+    for (std::size_t i = 0; i < returns; ++i) {
+      const std::size_t row = prepared.byte_offsets[i] / cloud.row_step;
+      const auto column =
+          static_cast<std::uint32_t>((prepared.byte_offsets[i] - row * cloud.row_step) / cloud.point_step);
+      prepared.firings.of_point[i] = grouper.firingOf(offsets[i], column);
+    }
+    prepared.time_field.datatype = PointField::FLOAT64;
   }
-  prepared.time_field = findTimeField(cloud, time_config_, &is_return);
-  std::vector<core::TimeNs> times;
-  pointTimes(cloud, prepared.time_field, times, &is_return);
-  core::TimeNs first = std::numeric_limits<core::TimeNs>::max();
-  core::TimeNs last = std::numeric_limits<core::TimeNs>::min();
-  for (std::size_t i = 0; i < count; ++i) {
-    prepared.times[entryOf(i)] = times[i];
-    if (!is_return[i])
-      continue;
-    ++prepared.returns;
-    first = std::min(first, times[i]);
-    last = std::max(last, times[i]);
+  // Every return's value is its firing's: the range over the firings is the range over the returns.
+  const std::vector<double>& values = grouper.values();
+  double low = std::numeric_limits<double>::infinity();
+  double high = -low;
+  for (double value : values) {
+    if (!std::isfinite(value))
+      throw core::InvalidInput("time field",
+                               (time_field != nullptr ? time_field->name : std::string("the azimuth")) +
+                                   " is not finite at some returns");
+    low = std::min(low, value);
+    high = std::max(high, value);
   }
-  if (prepared.returns == 0)
-    first = last = toNs(cloud.header.stamp);
-  if (core::nsToSeconds(last - first) > params_.timing.max_sweep_duration) {
-    throw core::InvalidInput("time field", prepared.time_field.name + " spans " +
-                                               formatNumber(core::nsToSeconds(last - first)) +
-                                               " s, more than max_sweep_duration");
-  }
-  constexpr core::TimeNs kLatestTime = (static_cast<core::TimeNs>(1) << 32) * 1'000'000'000 - 100'000'000'000;
-  if (first < 0 || last > kLatestTime)
+  if (!prepared.by_azimuth)
+    prepared.time_field = decideTimeField(*time_field, low, high, stamp, time_config_);
+  const CloudTimeField& field = prepared.time_field;
+  // Within ROS time (less 100 s) before any conversion.
+  constexpr double kLatestTime = 4294967296.0 - 100.0;  // [s]
+  const double shift = field.absolute ? 0.0 : core::nsToSeconds(stamp);
+  if (returns > 0 && !(low * field.unit + shift >= 0.0 && high * field.unit + shift <= kLatestTime))
     throw core::InvalidInput("time field", "puts the sweep outside the range of ROS time");
-  prepared.first = first;
-  prepared.last = last;
+  // The sweep's ends: the times of the lowest and highest value, as a time grows with its value.
+  prepared.first = returns == 0 ? stamp : timeOf(field, stamp, low);
+  prepared.last = returns == 0 ? stamp : timeOf(field, stamp, high);
+  if (core::nsToSeconds(prepared.last - prepared.first) > params_.timing.max_sweep_duration) {
+    throw core::InvalidInput("time field",
+                             (field.name.empty() ? std::string("the azimuth") : field.name) + " spans " +
+                                 formatNumber(core::nsToSeconds(prepared.last - prepared.first)) +
+                                 " s, more than max_sweep_duration");
+  }
+  prepared.firings.offsets.reserve(values.size());
+  prepared.firing_times.reserve(values.size());
+  for (double value : values) {
+    const core::TimeNs time = timeOf(field, stamp, value);
+    prepared.firing_times.push_back(time);
+    prepared.firings.offsets.push_back(core::nsToSeconds(time - prepared.first));
+  }
   return prepared;
+}
+
+void CloudProcessor::azimuthValues(const PreparedCloud& prepared, std::vector<double>& values) const {
+  const sensor_msgs::PointCloud2& cloud = *prepared.message;
+  if (cloud.height <= 1) {  // a dense cloud: in firing order as it is
+    azimuthOffsets(prepared.points, params_.azimuth, values);
+    return;
+  }
+  // An organized cloud column by column, no-returns as NaN: a column's points were fired together.
+  const std::size_t height = cloud.height;
+  std::vector<Eigen::Vector3d> by_column(static_cast<std::size_t>(cloud.width) * height,
+                                         Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN()));
+  std::vector<std::size_t> entries(prepared.points.size());
+  for (std::size_t i = 0; i < entries.size(); ++i) {
+    const std::size_t row = prepared.byte_offsets[i] / cloud.row_step;
+    const std::size_t column = (prepared.byte_offsets[i] - row * cloud.row_step) / cloud.point_step;
+    entries[i] = column * height + row;
+    by_column[entries[i]] = prepared.points[i];
+  }
+  std::vector<double> offsets;
+  azimuthOffsets(by_column, params_.azimuth, offsets, height);
+  values.resize(entries.size());
+  for (std::size_t i = 0; i < entries.size(); ++i)
+    values[i] = offsets[entries[i]];
 }
 
 CloudOutputs CloudProcessor::correct(const PreparedCloud& prepared, const mrpt::poses::CPose3D& mount,
                                      const core::MotionSource& motion) {
   checkTfGaps(params_.max_tf_gap, motion, prepared.first, prepared.last);
-  const std::size_t count = prepared.points.size();
-  offsets_.resize(count);
-  for (std::size_t i = 0; i < count; ++i)
-    offsets_[i] = core::nsToSeconds(prepared.times[i] - prepared.first);
-  const core::TimeNs reference = deskewer_.deskewPoints(prepared.points, offsets_, prepared.first, mount,
-                                                        motion, corrected_, corrected_offsets_, kept_);
+  const core::TimeNs reference =
+      deskewer_.deskewFirings(prepared.points, prepared.firings, prepared.first, mount, motion, corrected_);
 
   const sensor_msgs::PointCloud2& input = *prepared.message;
   auto output = boost::make_shared<sensor_msgs::PointCloud2>(input);
   output->header.stamp = toRosTime(reference);
-  const PointField& x = coordinateField(input, "x");
-  const PointField& y = coordinateField(input, "y");
-  const PointField& z = coordinateField(input, "z");
+  const Coordinates xyz(input);
   const CloudTimeField& time = prepared.time_field;
   // The time each corrected position holds: the reference, 0 from the new stamp.
   // (absolute: whole units and the fraction apart, as the drivers write them)
@@ -152,14 +290,17 @@ CloudOutputs CloudProcessor::correct(const PreparedCloud& prepared, const mrpt::
     time_value = static_cast<double>(reference / unit_ns) +
                  static_cast<double>(reference % unit_ns) / static_cast<double>(unit_ns);
   }
-  for (std::size_t k = 0; k < kept_.size(); ++k) {
-    std::uint8_t* point =
-        &output->data[pointOffset(input, prepared.order.empty() ? kept_[k] : prepared.order[kept_[k]])];
-    writeNumber(point + x.offset, x.datatype, corrected_[k].x());
-    writeNumber(point + y.offset, y.datatype, corrected_[k].y());
-    writeNumber(point + z.offset, z.datatype, corrected_[k].z());
-    writeNumber(point + time.offset, time.datatype, time_value);
-  }
+  xyz.withType([&](auto coordinate) {
+    using T = decltype(coordinate);
+    if (time.name.empty()) {  // timed by azimuth: no field to rewrite
+      writeReturns<T, void>(xyz, 0, 0.0, prepared.byte_offsets, corrected_, *output);
+      return;
+    }
+    withFieldType(time.datatype, [&](auto typed) {
+      writeReturns<T, decltype(typed)>(xyz, time.offset, time_value, prepared.byte_offsets, corrected_,
+                                       *output);
+    });
+  });
   CloudOutputs outputs;
   outputs.cloud = output;
   if (params_.cloud_scan.enabled)

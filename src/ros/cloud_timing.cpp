@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <type_traits>
 
 #include "lidar_deskew/ros/conversions.h"
 
@@ -18,21 +19,9 @@ namespace {
 using sensor_msgs::PointField;
 
 std::size_t sizeOf(std::uint8_t datatype) {
-  switch (datatype) {
-    case PointField::INT8:
-    case PointField::UINT8:
-      return 1;
-    case PointField::INT16:
-    case PointField::UINT16:
-      return 2;
-    case PointField::INT32:
-    case PointField::UINT32:
-    case PointField::FLOAT32:
-      return 4;
-    case PointField::FLOAT64:
-      return 8;
-  }
-  return 0;
+  std::size_t size = 0;
+  withFieldType(datatype, [&](auto typed) { size = sizeof typed; });
+  return size;
 }
 
 std::string typeName(std::uint8_t datatype) {
@@ -128,80 +117,102 @@ void checkCloudLayout(const sensor_msgs::PointCloud2& cloud) {
     throw core::InvalidInput("row_step", "is less than width x point_step");
   if (static_cast<std::uint64_t>(cloud.height) * cloud.row_step > cloud.data.size())
     throw core::InvalidInput("data", "holds less than height x row_step bytes");
+  if (cloud.data.size() > std::numeric_limits<std::uint32_t>::max())
+    throw core::InvalidInput("data", "holds more than 4 GiB");
 }
 
 double readNumber(const std::uint8_t* point, std::uint8_t datatype) {
-  const auto read = [point](auto value) {
-    std::memcpy(&value, point, sizeof value);
-    return static_cast<double>(value);
-  };
-  switch (datatype) {
-    case PointField::INT8:
-      return read(std::int8_t{});
-    case PointField::UINT8:
-      return read(std::uint8_t{});
-    case PointField::INT16:
-      return read(std::int16_t{});
-    case PointField::UINT16:
-      return read(std::uint16_t{});
-    case PointField::INT32:
-      return read(std::int32_t{});
-    case PointField::UINT32:
-      return read(std::uint32_t{});
-    case PointField::FLOAT32:
-      return read(float{});
-    case PointField::FLOAT64:
-      return read(double{});
-  }
-  return std::numeric_limits<double>::quiet_NaN();
+  double number = std::numeric_limits<double>::quiet_NaN();
+  withFieldType(datatype, [&](auto typed) {
+    std::memcpy(&typed, point, sizeof typed);
+    number = static_cast<double>(typed);
+  });
+  return number;
 }
 
-CloudTimeField findTimeField(const sensor_msgs::PointCloud2& cloud, const CloudTimeConfig& config,
-                             const std::vector<bool>* returns) {
+const PointField* timeFieldOf(const sensor_msgs::PointCloud2& cloud, const CloudTimeConfig& config) {
+  const auto rank = [](const std::string& name) {
+    return static_cast<std::size_t>(std::find(std::begin(kTimeFieldNames), std::end(kTimeFieldNames), name) -
+                                    std::begin(kTimeFieldNames));
+  };
   const PointField* found = nullptr;
   for (const PointField& field : cloud.fields) {
-    const bool wanted = config.field.empty()
-                            ? std::find(std::begin(kTimeFieldNames), std::end(kTimeFieldNames), field.name) !=
-                                  std::end(kTimeFieldNames)
-                            : field.name == config.field;
+    const bool wanted =
+        config.field.empty() ? rank(field.name) < std::size(kTimeFieldNames) : field.name == config.field;
     // The first of kTimeFieldNames present wins (a cloud may carry two).
-    if (wanted && (found == nullptr ||
-                   std::find(std::begin(kTimeFieldNames), std::end(kTimeFieldNames), field.name) <
-                       std::find(std::begin(kTimeFieldNames), std::end(kTimeFieldNames), found->name)))
+    if (wanted && (found == nullptr || rank(field.name) < rank(found->name)))
       found = &field;
   }
-  if (found == nullptr) {
-    throw core::InvalidInput(
-        "time field",
-        (config.field.empty() ? std::string("none of t, time, timestamp, time_stamp, offset_time, stamps")
-                              : "no field '" + config.field + "'") +
-            " in the cloud; its fields: " + fieldList(cloud) +
-            " (set time_field, or the azimuth fallback for a spinning sensor)");
-  }
-  CloudTimeField result;
-  result.name = found->name;
-  result.datatype = found->datatype;
-  result.offset = found->offset;
+  return found;
+}
 
-  // The values' range over the returns (no-return points may carry any time, or none).
-  const std::size_t count = static_cast<std::size_t>(cloud.width) * cloud.height;
-  double low = std::numeric_limits<double>::infinity();
-  double high = -low;
-  std::size_t counted = 0;
-  for (std::size_t i = 0; i < count; ++i) {
-    if (returns != nullptr && !(*returns)[i])
-      continue;
-    const double value = readNumber(&cloud.data[pointOffset(cloud, i) + result.offset], result.datatype);
-    if (!std::isfinite(value))
-      throw core::InvalidInput("time field",
-                               result.name + " of point " + std::to_string(i) + " is not finite");
-    low = std::min(low, value);
-    high = std::max(high, value);
-    ++counted;
+core::InvalidInput noTimeField(const sensor_msgs::PointCloud2& cloud, const CloudTimeConfig& config) {
+  return core::InvalidInput(
+      "time field",
+      (config.field.empty() ? std::string("none of t, time, timestamp, time_stamp, offset_time, stamps")
+                            : "no field '" + config.field + "'") +
+          " in the cloud; its fields: " + fieldList(cloud) +
+          " (set time_field, or azimuth_timing for a spinning sensor)");
+}
+
+void readFieldValues(const sensor_msgs::PointCloud2& cloud, const PointField& field,
+                     const std::vector<std::uint32_t>& points, std::vector<double>& values, double& low,
+                     double& high) {
+  values.resize(points.size());
+  low = std::numeric_limits<double>::infinity();
+  high = -low;
+  const std::uint8_t* const data = cloud.data.data() + field.offset;
+  bool finite = true;
+  withFieldType(field.datatype, [&](auto typed) {
+    // Two running ranges (even and odd points), so that one point's comparison need not wait for the
+    // last's.
+    double low_even = low, low_odd = low, high_even = high, high_odd = high;
+    const std::size_t count = points.size();
+    const auto read = [&](std::size_t i) {
+      std::memcpy(&typed, data + points[i], sizeof typed);
+      if constexpr (std::is_floating_point_v<decltype(typed)>)
+        finite &= std::isfinite(typed);
+      return values[i] = static_cast<double>(typed);
+    };
+    std::size_t i = 0;
+    for (; i + 1 < count; i += 2) {
+      const double even = read(i);
+      const double odd = read(i + 1);
+      low_even = std::min(low_even, even);
+      high_even = std::max(high_even, even);
+      low_odd = std::min(low_odd, odd);
+      high_odd = std::max(high_odd, odd);
+    }
+    if (i < count) {
+      const double last = read(i);
+      low_even = std::min(low_even, last);
+      high_even = std::max(high_even, last);
+    }
+    low = std::min(low_even, low_odd);
+    high = std::max(high_even, high_odd);
+  });
+  if (!finite) {
+    for (std::size_t i = 0; i < values.size(); ++i) {
+      if (!std::isfinite(values[i])) {
+        const std::size_t row = points[i] / cloud.row_step;
+        const std::size_t index = row * cloud.width + (points[i] - row * cloud.row_step) / cloud.point_step;
+        throw core::InvalidInput("time field",
+                                 field.name + " of point " + std::to_string(index) + " is not finite");
+      }
+    }
   }
-  if (counted == 0)
+}
+
+CloudTimeField decideTimeField(const PointField& field, double low, double high, core::TimeNs stamp_ns,
+                               const CloudTimeConfig& config) {
+  CloudTimeField result;
+  result.name = field.name;
+  result.datatype = field.datatype;
+  result.offset = field.offset;
+  const bool counted = low <= high;
+  if (!counted)
     low = high = 0.0;
-  const double stamp = toNs(cloud.header.stamp) * 1e-9;
+  const double stamp = static_cast<double>(stamp_ns) * 1e-9;
   const double sweep = config.max_sweep_duration;
   const std::vector<double> units = candidateUnits(config, result.datatype);
 
@@ -214,7 +225,7 @@ CloudTimeField findTimeField(const sensor_msgs::PointCloud2& cloud, const CloudT
   const auto absolute = [&]() {
     // In some unit, every value within a sweep and a second of the header.
     for (double unit : units) {
-      if (counted > 0 && std::abs(low * unit - stamp) <= sweep + 1.0 &&
+      if (counted && std::abs(low * unit - stamp) <= sweep + 1.0 &&
           std::abs(high * unit - stamp) <= sweep + 1.0) {
         result.absolute = true;
         result.unit = unit;
@@ -252,34 +263,81 @@ CloudTimeField findTimeField(const sensor_msgs::PointCloud2& cloud, const CloudT
                         " (set both time_unit and time_base)");
 }
 
+core::TimeNs timeOf(const CloudTimeField& field, core::TimeNs stamp, double value) {
+  const core::TimeNs base = field.absolute ? 0 : stamp;
+  const auto unit_ns = static_cast<core::TimeNs>(std::llround(field.unit * 1e9));
+  // [ns] from the value, whole units and the fraction apart: the conversion adds no error to what the
+  // value holds (float64 seconds at epoch-sized times hold about 0.1 us); integers are exact.
+  const double whole = std::floor(value);
+  return base + static_cast<core::TimeNs>(whole) * unit_ns +
+         static_cast<core::TimeNs>(std::llround((value - whole) * static_cast<double>(unit_ns)));
+}
+
+void timesOf(const CloudTimeField& field, core::TimeNs stamp, const std::vector<double>& values,
+             std::vector<core::TimeNs>& times) {
+  times.resize(values.size());
+  if (isInteger(field.datatype)) {  // timeOf(), the fraction being 0
+    const core::TimeNs base = field.absolute ? 0 : stamp;
+    const auto unit_ns = static_cast<core::TimeNs>(std::llround(field.unit * 1e9));
+    for (std::size_t i = 0; i < values.size(); ++i)
+      times[i] = base + static_cast<core::TimeNs>(values[i]) * unit_ns;
+    return;
+  }
+  // Consecutive points of one firing share a value: converted once.
+  double previous = std::numeric_limits<double>::quiet_NaN();
+  core::TimeNs time = 0;
+  for (std::size_t i = 0; i < values.size(); ++i) {
+    if (values[i] != previous) {
+      time = timeOf(field, stamp, values[i]);
+      previous = values[i];
+    }
+    times[i] = time;
+  }
+}
+
+namespace {
+
+/// Byte offsets of the points of a cloud that `returns` counts (every point when null), in index order.
+std::vector<std::uint32_t> returnOffsets(const sensor_msgs::PointCloud2& cloud,
+                                         const std::vector<bool>* returns) {
+  std::vector<std::uint32_t> offsets;
+  const std::size_t count = static_cast<std::size_t>(cloud.width) * cloud.height;
+  for (std::size_t i = 0; i < count; ++i) {
+    if (returns == nullptr || (*returns)[i])
+      offsets.push_back(static_cast<std::uint32_t>(pointOffset(cloud, i)));
+  }
+  return offsets;
+}
+
+}  // namespace
+
+CloudTimeField findTimeField(const sensor_msgs::PointCloud2& cloud, const CloudTimeConfig& config,
+                             const std::vector<bool>* returns) {
+  const PointField* field = timeFieldOf(cloud, config);
+  if (field == nullptr)
+    throw noTimeField(cloud, config);
+  std::vector<double> values;
+  double low, high;
+  readFieldValues(cloud, *field, returnOffsets(cloud, returns), values, low, high);
+  return decideTimeField(*field, low, high, toNs(cloud.header.stamp), config);
+}
+
 void pointTimes(const sensor_msgs::PointCloud2& cloud, const CloudTimeField& field,
                 std::vector<core::TimeNs>& times, const std::vector<bool>* returns) {
+  PointField at;
+  at.name = field.name;
+  at.offset = field.offset;
+  at.datatype = field.datatype;
+  std::vector<double> values;
+  double low, high;
+  readFieldValues(cloud, at, returnOffsets(cloud, returns), values, low, high);
+  std::vector<core::TimeNs> of_returns;
+  timesOf(field, toNs(cloud.header.stamp), values, of_returns);
   const std::size_t count = static_cast<std::size_t>(cloud.width) * cloud.height;
-  times.resize(count);
-  const core::TimeNs base = field.absolute ? 0 : toNs(cloud.header.stamp);
-  const bool exact_ns = field.unit == 1e-9 && isInteger(field.datatype);
-  const auto unit_ns = static_cast<core::TimeNs>(std::llround(field.unit * 1e9));
-  for (std::size_t i = 0; i < count; ++i) {
-    if (returns != nullptr && !(*returns)[i]) {
-      times[i] = base;  // no return: its time is not read
-      continue;
-    }
-    const std::uint8_t* at = &cloud.data[pointOffset(cloud, i) + field.offset];
-    if (exact_ns && field.datatype == PointField::UINT32) {
-      std::uint32_t value;
-      std::memcpy(&value, at, sizeof value);
-      times[i] = base + value;
-      continue;
-    }
-    const double value = readNumber(at, field.datatype);
-    if (!std::isfinite(value))
-      throw core::InvalidInput("time field",
-                               field.name + " of point " + std::to_string(i) + " is not finite");
-    // [ns] from the value, whole units and the fraction apart: the conversion adds no error to what
-    // the value holds (float64 seconds at epoch-sized times hold about 0.1 us).
-    const double whole = std::floor(value);
-    times[i] = base + static_cast<core::TimeNs>(whole) * unit_ns +
-               static_cast<core::TimeNs>(std::llround((value - whole) * static_cast<double>(unit_ns)));
+  times.assign(count, toNs(cloud.header.stamp));  // no return: its time is not read
+  for (std::size_t i = 0, k = 0; i < count; ++i) {
+    if (returns == nullptr || (*returns)[i])
+      times[i] = of_returns[k++];
   }
 }
 

@@ -47,6 +47,23 @@ struct DeskewedScan {
   std::vector<DeskewedPoint> points;
 };
 
+/// Points grouped by firing time: point i was measured at origin + offsets[of_point[i]]. A
+/// multi-line LIDAR fires a column of points at once: they share a firing, whatever their order.
+struct Firings {
+  std::vector<double> offsets;          ///< [s] from the origin, one per firing
+  std::vector<std::uint32_t> of_point;  ///< the firing of each point
+
+  void clear() {
+    offsets.clear();
+    of_point.clear();
+  }
+  /// Adds a firing at `offset` [s]; returns its index.
+  std::uint32_t add(double offset) {
+    offsets.push_back(offset);
+    return static_cast<std::uint32_t>(offsets.size() - 1);
+  }
+};
+
 /// Polar form of a corrected point in the laser's x-y plane (paper eq. 7, with atan2).
 struct PolarPoint {
   double range;    ///< [m] sqrt(x^2 + y^2)
@@ -109,6 +126,12 @@ class KnotTrajectory {
     // planar case: left_rotation = Rot_z(left_yaw), Exp(s angle axis) = Rot_z(s yaw_step)
     double left_yaw_cos, left_yaw_sin;
     double yaw_step;  // [rad] signed
+    // transformAt(): with K the cross-product matrix of the axis, sin and versin of s angle,
+    //   rotation    = left_rotation (I + sin K + versin K^2) R_M = rotation_base + sin rotation_sine + versin
+    //   rotation_versine translation = left_rotation (I + sin K + versin K^2) p_M + left_translation + s
+    //   translation_step
+    Eigen::Matrix3d rotation_base, rotation_sine, rotation_versine;
+    Eigen::Vector3d translation_base, translation_sine, translation_versine;  // [m]
   };
   std::size_t segmentFor(double time_offset) const;
 
@@ -138,6 +161,16 @@ class ScanDeskewer {
   void deskew(const PlanarScan& scan, const BeamTiming& timing, const mrpt::poses::CPose3D& mount,
               const MotionSource& motion, DeskewedScan& out);
 
+  /// Corrects points grouped by firing time (3D clouds): `points` [m] in the laser frame, point i measured
+  /// at the time of its firing. Writes corrected[i] for every point: a non-finite point stays
+  /// non-finite. The reference time is the earliest / middle / latest firing; returns it [ns]. Each
+  /// firing's affine map (KnotTrajectory::transformAt) is built once, for all its points. Throws
+  /// InvalidInput("firings") when they do not give every point a firing or an offset is not finite, otherwise
+  /// like deskew(); `corrected` is then left empty.
+  TimeNs deskewFirings(const std::vector<Eigen::Vector3d>& points, const Firings& firings, TimeNs origin,
+                       const mrpt::poses::CPose3D& mount, const MotionSource& motion,
+                       std::vector<Eigen::Vector3d>& corrected);
+
   /// Corrects points with their own times (3D clouds): `points` [m] in the laser frame, each measured
   /// at origin + time_offsets[i] [s]. The reference time is the earliest / middle / latest of those.
   /// Non-finite points or offsets are skipped. Writes the corrected positions and their time offsets
@@ -154,10 +187,9 @@ class ScanDeskewer {
   // deskew() / deskewPoints() without the clean-up on failure
   void correctScan(const PlanarScan& scan, const BeamTiming& timing, const mrpt::poses::CPose3D& mount,
                    const MotionSource& motion, DeskewedScan& out);
-  TimeNs correctPoints(const std::vector<Eigen::Vector3d>& points, const std::vector<double>& time_offsets,
-                       TimeNs origin, const mrpt::poses::CPose3D& mount, const MotionSource& motion,
-                       std::vector<Eigen::Vector3d>& corrected, std::vector<double>& corrected_offsets,
-                       std::vector<std::uint32_t>& kept_indices);
+  TimeNs correctFirings(const std::vector<Eigen::Vector3d>& points, const Firings& firings, TimeNs origin,
+                        const mrpt::poses::CPose3D& mount, const MotionSource& motion,
+                        std::vector<Eigen::Vector3d>& corrected);
 
   DeskewConfig config_;
   KnotTrajectory trajectory_;
@@ -165,6 +197,15 @@ class ScanDeskewer {
   float grid_angle_min_ = 0.0f;
   float grid_angle_increment_ = 0.0f;
   std::vector<Eigen::Vector2d> beam_directions_;
+  // deskewPoints(): the kept points and their firings
+  std::vector<Eigen::Vector3d> kept_points_;
+  Firings kept_firings_;
+  // deskewFirings(): the affine map of each firing
+  struct FiringMap {
+    Eigen::Matrix3d rotation;
+    Eigen::Vector3d translation;
+  };
+  std::vector<FiringMap> firing_maps_;
 };
 
 /// The exact chain for one point, composed with MRPT per call (exact mode, tests):

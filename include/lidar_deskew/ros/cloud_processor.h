@@ -19,20 +19,28 @@ namespace lidar_deskew::ros_adapter {
 /// A cloud checked and timed, ready to be corrected once its motion is known.
 struct PreparedCloud {
   sensor_msgs::PointCloud2::ConstPtr message;
+  /// How its times were read; with azimuth timing, name "" (no field to rewrite) and seconds from the
+  /// stamp.
   CloudTimeField time_field;
-  std::vector<Eigen::Vector3d> points;  ///< [m] every point; NaN where it is no return
-  std::vector<core::TimeNs> times;      ///< [ns] every point's time
-  /// The cloud's index of each entry of points and times: an organized cloud is taken column by column
-  /// (a column's points share a firing time); empty when in the cloud's own order.
-  std::vector<std::uint32_t> order;
-  std::size_t returns = 0;  ///< points with finite coordinates, not at the origin
-  core::TimeNs first = 0;   ///< [ns] earliest return (header.stamp when none)
-  core::TimeNs last = 0;    ///< [ns] latest return
+  /// [m] The returns (finite coordinates, not at the origin), in the cloud's order.
+  std::vector<Eigen::Vector3d> points;
+  std::vector<std::uint32_t> byte_offsets;  ///< where each return starts in message->data
+  /// The returns grouped by time (a multi-line LIDAR's column fires at once), offsets from `first`.
+  core::Firings firings;
+  std::vector<core::TimeNs> firing_times;  ///< [ns] of each firing, exact
+  core::TimeNs first = 0;                  ///< [ns] earliest return (header.stamp when none)
+  core::TimeNs last = 0;                   ///< [ns] latest return
+  bool by_azimuth = false;                 ///< timed by azimuth_timing
 
+  /// [ns] Return i's time.
+  core::TimeNs timeOf(std::size_t i) const { return firing_times[firings.of_point[i]]; }
   core::TimeNs earliest() const { return first; }
   core::TimeNs latest() const { return last; }
-  /// How the cloud was timed, when not by its own time field (never, for now).
-  const char* timingFallback() const { return nullptr; }
+  /// How the cloud was timed, when not by its own time field.
+  const char* timingFallback() const {
+    return by_azimuth ? "clouds have no time field; point times come from their azimuth (azimuth_timing)"
+                      : nullptr;
+  }
 };
 
 /// The output of one cloud.
@@ -57,8 +65,9 @@ class CloudProcessor {
 
   explicit CloudProcessor(const DeskewParams& params);
 
-  /// Checks a cloud and reads every point's time. Throws core::InvalidInput naming the bad field (the
-  /// time field, when none is found or its values fit no unit: the message names the cloud's fields).
+  /// Checks a cloud and reads every point's time, in one pass over its data. Throws core::InvalidInput
+  /// naming the bad field (the time field, when none is found or its values fit no unit: the message
+  /// names the cloud's fields; with azimuth_timing, a cloud without one is timed by azimuth instead).
   PreparedCloud prepare(const sensor_msgs::PointCloud2::ConstPtr& message) const;
   /// Throws core::MotionUnavailable when the motion does not cover the sweep, TfGapTooLong when it has
   /// a gap longer than max_tf_gap there.
@@ -68,6 +77,8 @@ class CloudProcessor {
   CloudOutputs passThrough(const PreparedCloud& prepared) const;
 
  private:
+  /// With azimuth_timing: each return's offset [s] from the stamp, from its azimuth.
+  void azimuthValues(const PreparedCloud& prepared, std::vector<double>& values) const;
   /// The planar scan of the finite `points` within the height band (nearest per bin).
   sensor_msgs::LaserScan::ConstPtr planarScan(const std::vector<Eigen::Vector3d>& points,
                                               const std_msgs::Header& header) const;
@@ -75,10 +86,7 @@ class CloudProcessor {
   DeskewParams params_;
   CloudTimeConfig time_config_;
   core::ScanDeskewer deskewer_;
-  std::vector<double> offsets_;
   std::vector<Eigen::Vector3d> corrected_;
-  std::vector<double> corrected_offsets_;
-  std::vector<std::uint32_t> kept_;
 };
 
 }  // namespace lidar_deskew::ros_adapter

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <sensor_msgs/PointCloud2.h>
+#include <sensor_msgs/PointField.h>
 
 #include <cstdint>
 #include <string>
@@ -41,8 +42,8 @@ struct CloudTimeField {
 };
 
 /// The layout of a cloud checked against its data: little-endian, point_step holding every field,
-/// data holding height x row_step, row_step holding width x point_step. Throws core::InvalidInput
-/// naming the bad field.
+/// data holding height x row_step (and at most 4 GiB, as a message can), row_step holding width x
+/// point_step. Throws core::InvalidInput naming the bad field.
 void checkCloudLayout(const sensor_msgs::PointCloud2& cloud);
 
 /// Byte offset of point `index` (row-major over height x width) in cloud.data.
@@ -50,18 +51,70 @@ inline std::size_t pointOffset(const sensor_msgs::PointCloud2& cloud, std::size_
   return (index / cloud.width) * cloud.row_step + (index % cloud.width) * cloud.point_step;
 }
 
+/// Calls visit(T{}) with the C++ type of a PointField datatype (std::uint8_t .. double); false for an
+/// unknown datatype. One switch per field, not per value: the loop inside `visit` is typed.
+template <typename Visit>
+bool withFieldType(std::uint8_t datatype, Visit&& visit) {
+  switch (datatype) {
+    case sensor_msgs::PointField::INT8:
+      return visit(std::int8_t{}), true;
+    case sensor_msgs::PointField::UINT8:
+      return visit(std::uint8_t{}), true;
+    case sensor_msgs::PointField::INT16:
+      return visit(std::int16_t{}), true;
+    case sensor_msgs::PointField::UINT16:
+      return visit(std::uint16_t{}), true;
+    case sensor_msgs::PointField::INT32:
+      return visit(std::int32_t{}), true;
+    case sensor_msgs::PointField::UINT32:
+      return visit(std::uint32_t{}), true;
+    case sensor_msgs::PointField::FLOAT32:
+      return visit(float{}), true;
+    case sensor_msgs::PointField::FLOAT64:
+      return visit(double{}), true;
+  }
+  return false;
+}
+
 /// Reads a numeric field of the point at byte offset `at` (of any PointField datatype) as a double.
 double readNumber(const std::uint8_t* point, std::uint8_t datatype);
 
-/// Finds the time field and decides its unit and base from the values of the returns (`returns[i]`;
-/// every point when null) against header.stamp: absolute when, in some unit, the values lie within
+/// The time field `config` names, or else the first of kTimeFieldNames the cloud has; null when none.
+const sensor_msgs::PointField* timeFieldOf(const sensor_msgs::PointCloud2& cloud,
+                                           const CloudTimeConfig& config);
+
+/// The error for a cloud without a time field: names the fields it has.
+core::InvalidInput noTimeField(const sensor_msgs::PointCloud2& cloud, const CloudTimeConfig& config);
+
+/// The values of `field` of the points that start at byte `points[i]` of cloud.data, as doubles
+/// (exact for every PointField datatype), with their range (low > high when there are none). Throws
+/// core::InvalidInput naming the field and the point for a value that is not finite.
+void readFieldValues(const sensor_msgs::PointCloud2& cloud, const sensor_msgs::PointField& field,
+                     const std::vector<std::uint32_t>& points, std::vector<double>& values, double& low,
+                     double& high);
+
+/// Decides the unit and base of a time field from its values' range [low, high] over the returns
+/// (low > high: none) against header.stamp: absolute when, in some unit, the values lie within
 /// max_sweep_duration + 1 s of header.stamp; otherwise offsets from header.stamp in the first unit in
 /// which they span at most max_sweep_duration (integer fields tried as ns, us, ms, s; floating ones as
 /// s, ms, us, ns: the drivers' own units come first). Near time 0 (header.stamp within twice that
 /// window: a simulator's clock) offsets are tried first, as the two look alike there. time_unit or
 /// time_base alone narrow the choice; both given decide it. Throws core::InvalidInput("time field")
-/// with a message naming the cloud's fields when there is none, or its values fit no unit. The layout
-/// must be checked.
+/// when the values fit no unit.
+CloudTimeField decideTimeField(const sensor_msgs::PointField& field, double low, double high,
+                               core::TimeNs stamp, const CloudTimeConfig& config);
+
+/// The absolute time [ns] of a time field value (as decided for the field), exact to what the value
+/// holds; increases with the value. The value times the unit must lie within ROS time.
+core::TimeNs timeOf(const CloudTimeField& field, core::TimeNs stamp, double value);
+
+/// timeOf() of each value.
+void timesOf(const CloudTimeField& field, core::TimeNs stamp, const std::vector<double>& values,
+             std::vector<core::TimeNs>& times);
+
+/// The above over a whole cloud in index order: finds the time field and decides it from the values of
+/// the returns (`returns[i]`; every point when null). Throws core::InvalidInput("time field") naming
+/// the cloud's fields when there is none, or when its values fit no unit. The layout must be checked.
 CloudTimeField findTimeField(const sensor_msgs::PointCloud2& cloud, const CloudTimeConfig& config,
                              const std::vector<bool>* returns = nullptr);
 
