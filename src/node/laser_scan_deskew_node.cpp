@@ -291,7 +291,7 @@ void DeskewNode<Processor>::inputCallback(const typename Message::ConstPtr& mess
   try {
     pipeline_.add(message, waitClock(arrival));
   } catch (const std::exception& error) {  // never let an exception reach the manager
-    ROS_ERROR_THROTTLE(1.0, "%s: error processing scans: %s", name_.c_str(), error.what());
+    ROS_ERROR_THROTTLE(1.0, "%s: error processing %ss: %s", name_.c_str(), Processor::kNoun, error.what());
   }
 }
 
@@ -327,7 +327,7 @@ void DeskewNode<Processor>::timerCallback(const ros::WallTimerEvent& /*event*/) 
       else
         pipeline_.serveReady(waitClock(now));
     } catch (const std::exception& error) {  // never let an exception reach the manager
-      ROS_ERROR_THROTTLE(1.0, "%s: error processing scans: %s", name_.c_str(), error.what());
+      ROS_ERROR_THROTTLE(1.0, "%s: error processing %ss: %s", name_.c_str(), Processor::kNoun, error.what());
     }
     diagnostics_due = (now - last_diagnostics_).toSec() >= params_.diagnostics_period;
   }
@@ -397,9 +397,11 @@ void DeskewNode<Processor>::produceDiagnostics(diagnostic_updater::DiagnosticSta
   const std::uint64_t dropped_before =
       was.dropped_invalid + was.dropped_tf + was.dropped_mount + was.dropped_queue;
   if (dropped > dropped_before) {
-    status.summary(diagnostic_msgs::DiagnosticStatus::WARN, "dropping scans");
+    status.summary(diagnostic_msgs::DiagnosticStatus::WARN,
+                   "dropping " + std::string(Processor::kNoun) + "s");
   } else if (counters.passed_through > was.passed_through) {
-    status.summary(diagnostic_msgs::DiagnosticStatus::WARN, "passing scans through uncorrected");
+    status.summary(diagnostic_msgs::DiagnosticStatus::WARN,
+                   "passing " + std::string(Processor::kNoun) + "s through uncorrected");
   } else {
     status.summary(diagnostic_msgs::DiagnosticStatus::OK, "ok");
   }
@@ -407,7 +409,7 @@ void DeskewNode<Processor>::produceDiagnostics(diagnostic_updater::DiagnosticSta
   status.add("output rate [Hz]", (counters.published - was.published) / elapsed);
   for (const auto& [name, value] : ros_adapter::namedCounters(counters))
     status.add(name, value);
-  status.add("waiting scans", pipeline_.waiting());
+  status.add("waiting " + std::string(Processor::kNoun) + "s", pipeline_.waiting());
   const double done = std::max<std::uint64_t>(1, counters.published);
   status.add("tf wait mean [ms]", 1e3 * counters.tf_wait_total / done);
   status.add("tf wait max [ms]", 1e3 * counters.tf_wait_max);

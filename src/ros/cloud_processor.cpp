@@ -331,6 +331,9 @@ sensor_msgs::LaserScan::ConstPtr CloudProcessor::planarScan(const std::vector<Ei
   scan->range_min = 0.0f;
   scan->range_max = static_cast<float>(band.range_max);
   scan->ranges.assign(bins, std::numeric_limits<float>::infinity());
+  // A grid round the whole circle: the ray after the last bin is the first (+pi is -pi).
+  const bool whole_circle =
+      std::abs(static_cast<double>(bins) * band.angle_increment - 2.0 * M_PI) <= 0.5 * band.angle_increment;
   for (const Eigen::Vector3d& point : points) {
     if (!point.allFinite() || point.z() < band.height_min || point.z() > band.height_max)
       continue;
@@ -338,7 +341,9 @@ sensor_msgs::LaserScan::ConstPtr CloudProcessor::planarScan(const std::vector<Ei
     if (range > band.range_max || range == 0.0)
       continue;
     // The nearest point on each bin's ray (pointcloud_to_laserscan's rule, after the correction).
-    const double bin = std::round((std::atan2(point.y(), point.x()) - band.angle_min) / band.angle_increment);
+    double bin = std::round((std::atan2(point.y(), point.x()) - band.angle_min) / band.angle_increment);
+    if (whole_circle && bin == static_cast<double>(bins))
+      bin = 0.0;
     if (bin < 0.0 || bin >= static_cast<double>(bins))
       continue;
     float& kept = scan->ranges[static_cast<std::size_t>(bin)];

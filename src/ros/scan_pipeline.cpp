@@ -51,7 +51,7 @@ std::vector<std::pair<std::string, std::uint64_t>> namedCounters(const PipelineC
           {"dropped: tf", c.dropped_tf},
           {"dropped: mount", c.dropped_mount},
           {"dropped: queue", c.dropped_queue},
-          {"time_increment fallbacks", c.time_fallbacks},
+          {"timing fallbacks", c.time_fallbacks},
           {"tf gaps", c.tf_gaps},
           {"mount changes", c.mount_changes},
           {"time jumps", c.time_jumps},
@@ -62,9 +62,9 @@ std::vector<std::pair<std::string, std::uint64_t>> namedCounters(const PipelineC
 std::string toString(PipelineEvent event) {
   switch (event) {
     case PipelineEvent::kMalformed:
-      return "malformed scan";
+      return "malformed message";
     case PipelineEvent::kTimeFallback:
-      return "time_increment fallback";
+      return "timing fallback";
     case PipelineEvent::kQueueFull:
       return "queue full";
     case PipelineEvent::kTfFailure:
@@ -144,7 +144,8 @@ void SweepPipeline<Processor>::onTfEvent(TfEvent event, const std::string& text)
         break;
       }
       ++counters_.time_jumps;
-      report_(PipelineEvent::kTimeJump, text + " and " + std::to_string(pending_.size()) + " waiting scans");
+      report_(PipelineEvent::kTimeJump, text + " and " + std::to_string(pending_.size()) + " waiting " +
+                                            std::string(Processor::kNoun) + "s");
       failWaiting("time went backwards");
       clock_follows_tf_ = true;  // the owner's clock may follow tf back: that is this jump, not another
       tf_jump_clock_ = clock_.value_or(0.0);
@@ -186,7 +187,7 @@ void SweepPipeline<Processor>::observeClock(double now) {
   ++counters_.time_jumps;
   report_(PipelineEvent::kTimeJump, "the clock went back " + std::to_string(back) +
                                         " s: clearing the tf cache and " + std::to_string(pending_.size()) +
-                                        " waiting scans");
+                                        " waiting " + std::string(Processor::kNoun) + "s");
   tf_.forgetMotion();
   // tf of the old time line may still be on its way (another connection) and refill the cache: the tf
   // going back after it is then this jump, not another.
@@ -202,8 +203,9 @@ void SweepPipeline<Processor>::failWaiting(const std::string& reason) {
   for (const Pending& pending : waiting) {
     if (!tf_.mountKnown(pending.frame)) {
       ++counters_.dropped_mount;
-      report_(PipelineEvent::kMountMissing, "dropping scan: no transform " + tf_.baseFrame() + " -> " +
-                                                pending.frame + " (the laser mount)");
+      report_(PipelineEvent::kMountMissing, "dropping " + std::string(Processor::kNoun) + ": no transform " +
+                                                tf_.baseFrame() + " -> " + pending.frame +
+                                                " (the laser mount)");
     } else {
       fail(pending, reason);
     }
@@ -236,9 +238,9 @@ void SweepPipeline<Processor>::add(const typename Message::ConstPtr& message, do
     pending.prepared = processor_.prepare(message);
   } catch (const std::exception& error) {  // core::InvalidInput, or out of memory for an absurd scan
     ++counters_.dropped_invalid;
-    report_(PipelineEvent::kMalformed, "dropping malformed scan (frame '" + message->header.frame_id +
-                                           "', stamp " + std::to_string(message->header.stamp.toSec()) +
-                                           "): " + error.what());
+    report_(PipelineEvent::kMalformed,
+            "dropping malformed " + std::string(Processor::kNoun) + " (frame '" + message->header.frame_id +
+                "', stamp " + std::to_string(message->header.stamp.toSec()) + "): " + error.what());
     return;
   }
   pending.frame = normalizedFrame(message->header.frame_id);
@@ -248,8 +250,9 @@ void SweepPipeline<Processor>::add(const typename Message::ConstPtr& message, do
   pending_.push_back(std::move(pending));
   while (static_cast<int>(pending_.size()) > params_.queue_size) {
     ++counters_.dropped_queue;
-    report_(PipelineEvent::kQueueFull,
-            "more than " + std::to_string(params_.queue_size) + " scans wait for tf; dropping the oldest");
+    report_(PipelineEvent::kQueueFull, "more than " + std::to_string(params_.queue_size) + " " +
+                                           std::string(Processor::kNoun) +
+                                           "s wait for tf; dropping the oldest");
     pending_.pop_front();
   }
   serveReady(now);
@@ -297,8 +300,9 @@ void SweepPipeline<Processor>::expire(double now) {
       correct(expired, true, now);
     } else if (!tf_.mountKnown(expired.frame)) {
       ++counters_.dropped_mount;
-      report_(PipelineEvent::kMountMissing, "dropping scan: no transform " + tf_.baseFrame() + " -> " +
-                                                expired.frame + " (the laser mount) within tf_timeout");
+      report_(PipelineEvent::kMountMissing, "dropping " + std::string(Processor::kNoun) + ": no transform " +
+                                                tf_.baseFrame() + " -> " + expired.frame +
+                                                " (the laser mount) within tf_timeout");
     } else {
       fail(expired, "tf did not cover the sweep within tf_timeout");
     }
@@ -318,8 +322,9 @@ void SweepPipeline<Processor>::correct(const Pending& pending, bool extrapolate,
   const std::optional<mrpt::poses::CPose3D> mount = tf_.mount(pending.frame, error);
   if (!mount) {
     ++counters_.dropped_mount;
-    report_(PipelineEvent::kMountMissing, "dropping scan: no transform " + tf_.baseFrame() + " -> " +
-                                              pending.frame + " for the laser mount: " + error);
+    report_(PipelineEvent::kMountMissing, "dropping " + std::string(Processor::kNoun) + ": no transform " +
+                                              tf_.baseFrame() + " -> " + pending.frame +
+                                              " for the laser mount: " + error);
     return;
   }
   Result result;
@@ -357,11 +362,13 @@ void SweepPipeline<Processor>::fail(const Pending& pending, const std::string& r
   const std::string stamp = std::to_string(pending.prepared.message->header.stamp.toSec());
   if (params_.on_tf_failure == OnTfFailure::kDrop) {
     ++counters_.dropped_tf;
-    report_(PipelineEvent::kTfFailure, "dropping scan at " + stamp + ": " + reason);
+    report_(PipelineEvent::kTfFailure,
+            "dropping " + std::string(Processor::kNoun) + " at " + stamp + ": " + reason);
     return;
   }
   ++counters_.passed_through;
-  report_(PipelineEvent::kTfFailure, "passing scan at " + stamp + " through uncorrected: " + reason);
+  report_(PipelineEvent::kTfFailure,
+          "passing " + std::string(Processor::kNoun) + " at " + stamp + " through uncorrected: " + reason);
   Result result;
   result.outputs = processor_.passThrough(pending.prepared);
   result.id = pending.id;

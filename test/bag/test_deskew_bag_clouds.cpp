@@ -66,7 +66,8 @@ double rmsOf(const std::vector<sensor_msgs::PointCloud2::ConstPtr>& clouds, cons
   return count == 0 ? INFINITY : std::sqrt(sum / count);
 }
 
-Scores run(const std::string& scenario_name, CloudConvention convention, bool noise) {
+Scores run(const std::string& scenario_name, CloudConvention convention, bool noise,
+           const ros_adapter::DeskewParams& params = {}) {
   const std::string name = sim::cloudConventionName(convention);
   const std::string dir = ::testing::TempDir();
   const std::string in = dir + "/clouds_" + name + ".bag", truth_path = dir + "/clouds_" + name + ".truth";
@@ -84,6 +85,7 @@ Scores run(const std::string& scenario_name, CloudConvention convention, bool no
     deskew.input = in;
     deskew.output = dir + "/clouds_" + name + (exact ? "_exact" : "") + "_out.bag";
     deskew.cloud_topics = {"/points"};  // nothing else: the time field is found alone
+    deskew.params = params;
     deskew.params.exact = exact;
     deskew.params.deskew.knot_interval = exact ? 0.0 : deskew.params.deskew.knot_interval;
     const bag::BagDeskewSummary summary = bag::deskewBag(deskew);
@@ -135,6 +137,39 @@ TEST(DeskewBagClouds, RoughGroundWithNoise) {
       1e3 * scores.raw, 1e3 * scores.ours, 1e3 * scores.exact);
   EXPECT_LT(scores.ours, 1.02 * scores.exact);
   EXPECT_LT(scores.ours, scores.raw);
+}
+
+// A VLP-16 recording whose clouds carry no time field (velodyne_pointcloud's PointXYZIR, stamped at the
+// first point): dropped, naming the fields, unless azimuth_timing is set; with it, as exact as the
+// clouds with times.
+TEST(DeskewBagClouds, NoTimeFieldWithAzimuthTiming) {
+  const std::string dir = ::testing::TempDir();
+  const std::string in = dir + "/clouds_no_time.bag", truth_path = dir + "/clouds_no_time.truth";
+  sim::CloudBagOptions options;
+  options.convention = CloudConvention::kNoTime;
+  options.duration = 0.5;
+  writeCloudBag(sim::findCloudScenario("VLP16/high/arc"), options, in, truth_path);
+  bag::BagDeskewOptions deskew;
+  deskew.input = in;
+  deskew.output = dir + "/clouds_no_time_out.bag";
+  deskew.cloud_topics = {"/points"};
+  const ros_adapter::PipelineCounters counters = bag::deskewBag(deskew).counters.at("/points");
+  EXPECT_GE(counters.received, 4u);
+  EXPECT_EQ(counters.published, 0u);
+  EXPECT_EQ(counters.dropped_invalid, counters.received);
+  std::remove(deskew.output.c_str());
+
+  ros_adapter::DeskewParams params;
+  params.azimuth.enabled = true;  // the simulated VLP-16 spins clockwise, stamped at its first point
+  const Scores scores = run("VLP16/high/arc", CloudConvention::kNoTime, false, params);
+  std::printf("no_time with azimuth_timing: raw %.2f mm, ours %.4f mm, one lookup per point %.4f mm RMS\n",
+              1e3 * scores.raw, 1e3 * scores.ours, 1e3 * scores.exact);
+  EXPECT_GE(scores.clouds, 4u);
+  EXPECT_GT(scores.raw, 20e-3);
+  EXPECT_LT(scores.ours, scores.exact + 0.1e-3);
+  EXPECT_LT(scores.ours, 1e-3);
+  std::remove(in.c_str());
+  std::remove(truth_path.c_str());
 }
 
 // With cloud_scan: the corrected points of the height band as a planar LaserScan (for gmapping/AMCL),

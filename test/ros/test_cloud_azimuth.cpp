@@ -11,6 +11,7 @@
 
 #include "lidar_deskew/core/types.h"
 #include "lidar_deskew/ros/cloud_azimuth.h"
+#include "lidar_deskew/ros/cloud_processor.h"
 #include "lidar_deskew/ros/cloud_timing.h"
 #include "lidar_deskew/ros/deskew_params.h"
 #include "lidar_deskew/ros/text_params.h"
@@ -356,6 +357,47 @@ TEST(CloudAzimuth, TheNoTimeLayoutHasNoTimeField) {
         std::string(error.what()).find("x (float32), y (float32), z (float32), intensity (float32), ring"),
         std::string::npos)
         << error.what();
+  }
+}
+
+// The wiring: CloudProcessor times a cloud that has no time field from its azimuth when azimuth_timing
+// is set (a dense VLP-16 cloud as it is, an organized OS1-64 cloud column by column), and the times it
+// gives are the ones the same cloud's own time field gives; without azimuth_timing it is refused.
+TEST(CloudAzimuth, CloudProcessorTimesACloudWithoutTimeField) {
+  constexpr core::TimeNs kEpoch = 1'700'000'000'000'000'000;
+  struct Case {
+    const char* sensor;
+    CloudConvention convention;
+    const char* direction;
+  };
+  for (const Case& c : {Case{"VLP16", CloudConvention::kVelodyneFirst, "cw"},
+                        Case{"OS1-64", CloudConvention::kOuster, "ccw"}}) {
+    SCOPED_TRACE(c.sensor);
+    const sim::CloudScenario scenario = sim::findCloudScenario(std::string(c.sensor) + "/high/arc");
+    const auto timed = boost::make_shared<sensor_msgs::PointCloud2>(sim::toPointCloud2(
+        sim::simulateSweep(sim::World3::hall(), *scenario.trajectory(), scenario.mount, scenario.lidar, 0.3),
+        c.convention, kEpoch, "lidar"));
+    ros_adapter::DeskewParams params;
+    const ros_adapter::PreparedCloud by_field = ros_adapter::CloudProcessor(params).prepare(timed);
+    ASSERT_FALSE(by_field.by_azimuth);
+    auto untimed = boost::make_shared<sensor_msgs::PointCloud2>(*timed);
+    for (sensor_msgs::PointField& field : untimed->fields) {
+      if (field.name == by_field.time_field.name)
+        field.name = "unused";
+    }
+    EXPECT_THROW(ros_adapter::CloudProcessor(params).prepare(untimed), core::InvalidInput);
+    params.azimuth = timingOf(c.direction, "start");
+    const ros_adapter::PreparedCloud by_azimuth = ros_adapter::CloudProcessor(params).prepare(untimed);
+    EXPECT_TRUE(by_azimuth.by_azimuth);
+    EXPECT_NE(by_azimuth.timingFallback(), nullptr);
+    ASSERT_EQ(by_azimuth.points.size(), by_field.points.size());
+    core::TimeNs worst = 0;
+    for (std::size_t i = 0; i < by_field.points.size(); ++i)
+      worst = std::max(worst, std::abs(by_azimuth.timeOf(i) - by_field.timeOf(i)));
+    std::printf("%s: %zu returns timed by azimuth, at most %.3f us from the time field's times\n", c.sensor,
+                by_field.points.size(), 1e-3 * static_cast<double>(worst));
+    EXPECT_LE(worst, 1000);  // [ns]
+    EXPECT_EQ(by_azimuth.first, by_field.first);
   }
 }
 

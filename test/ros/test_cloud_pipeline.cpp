@@ -5,8 +5,11 @@
 // negative float32 seconds. Truth: the simulator's walls.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
 #include <cstring>
 
+#include "lidar_deskew/ros/cloud_processor.h"
 #include "lidar_deskew/ros/conversions.h"
 #include "lidar_deskew/ros/scan_pipeline.h"
 #include "lidar_deskew/sim/sim.h"
@@ -120,6 +123,36 @@ TEST(CloudPipeline, CloudWithoutTimeIsDroppedNamingItsFields) {
                 "x (float32), y (float32), z (float32), intensity (float32), ring (uint32)"),
             std::string::npos)
       << run.events.back().second;
+  EXPECT_NE(run.events.back().second.find("dropping malformed cloud"), std::string::npos)
+      << run.events.back().second;
+}
+
+// The planar scan's default grid goes round the whole circle: a point nearest the ray at +pi lands in
+// the first bin (-pi is the same ray), not off the grid's end.
+TEST(CloudPipeline, PlanarScanWrapsRoundPi) {
+  ros_adapter::DeskewParams params;
+  params.cloud_scan.enabled = true;
+  ros_adapter::CloudProcessor processor(params);
+  for (double angle : {M_PI - 0.0011, M_PI, -M_PI + 0.0011}) {
+    sensor_msgs::LaserScan scan;
+    scan.header.frame_id = "laser";
+    scan.header.stamp = ros::Time(100.0);
+    scan.angle_min = scan.angle_max = static_cast<float>(angle);
+    scan.angle_increment = 0.01f;
+    scan.time_increment = 1e-4f;
+    scan.scan_time = 0.1f;
+    scan.range_min = 0.1f;
+    scan.range_max = 30.0f;
+    scan.ranges = {5.0f};
+    const ros_adapter::CloudOutputs out =
+        processor.passThrough(processor.prepare(cloudOf(scan, Layout::kVelodyneLast)));
+    ASSERT_TRUE(out.scan);
+    EXPECT_NEAR(out.scan->ranges.front(), 5.0f, 1e-5) << angle;
+    EXPECT_EQ(std::count_if(out.scan->ranges.begin(), out.scan->ranges.end(),
+                            [](float r) { return std::isfinite(r); }),
+              1)
+        << angle;
+  }
 }
 
 }  // namespace

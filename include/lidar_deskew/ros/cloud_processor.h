@@ -60,6 +60,7 @@ struct CloudOutputs {
 class CloudProcessor {
  public:
   using Message = sensor_msgs::PointCloud2;
+  static constexpr const char* kNoun = "cloud";  ///< what logs and diagnostics call one message
   using Prepared = PreparedCloud;
   using Outputs = CloudOutputs;
 

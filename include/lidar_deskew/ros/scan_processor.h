@@ -45,6 +45,7 @@ struct DeskewedOutputs {
 class ScanProcessor {
  public:
   using Message = sensor_msgs::LaserScan;
+  static constexpr const char* kNoun = "scan";  ///< what logs and diagnostics call one message
   using Prepared = PreparedScan;
   using Outputs = DeskewedOutputs;
 
