@@ -412,10 +412,8 @@ void process(const sensor_msgs::PointCloud2::Ptr& cloud, const ros_adapter::Desk
   core::PoseSamples samples;
   ros_adapter::TfFeed feed("odom", "base_link", 200.0, nullptr);
   for (int k = -2; k <= 6; ++k) {
-    if (coverage == 2 && k == 2)
-      continue;
-    const core::TimeNs time = (coverage == 1 && k > 4 ? last - 1 : first + k * step) + (k == 6 ? step : 0);
-    if (time < 0 || time >= kRosTimeEnd || (!samples.empty() && time <= samples.lastTime()))
+    const core::TimeNs time = first + k * step + (k == 6 ? step : 0);
+    if ((coverage == 1 && time >= last) || (coverage == 2 && k == 2) || time < 0 || time >= kRosTimeEnd)
       continue;
     const mrpt::poses::CPose3D pose(0.3 * k, 0.1 * k, 0.01 * k, 0.2 * k, 0.01, -0.02 * k);
     samples.add(time, pose);
