@@ -29,12 +29,23 @@ const PointField& coordinateField(const sensor_msgs::PointCloud2& cloud, const s
   throw core::InvalidInput("fields", "no " + name + " field");
 }
 
-/// The x, y and z fields, of one datatype.
+/// True when the values of two fields (of known datatypes) share a byte: writing one would change
+/// the other.
+bool overlap(const PointField& a, const PointField& b) {
+  std::uint64_t size_a = 0, size_b = 0;
+  withFieldType(a.datatype, [&](auto typed) { size_a = sizeof typed; });
+  withFieldType(b.datatype, [&](auto typed) { size_b = sizeof typed; });
+  return a.offset < b.offset + size_b && b.offset < a.offset + size_a;
+}
+
+/// The x, y and z fields, of one datatype, apart.
 struct Coordinates {
   explicit Coordinates(const sensor_msgs::PointCloud2& cloud)
       : x(coordinateField(cloud, "x")), y(coordinateField(cloud, "y")), z(coordinateField(cloud, "z")) {
     if (y.datatype != x.datatype || z.datatype != x.datatype)
       throw core::InvalidInput("fields", "x, y and z differ in datatype");
+    if (overlap(x, y) || overlap(x, z) || overlap(y, z))
+      throw core::InvalidInput("fields", "x, y and z overlap");
   }
   /// Calls visit(T{}) with their C++ type.
   template <typename Visit>
@@ -127,7 +138,9 @@ void readReturns(const sensor_msgs::PointCloud2& cloud, const Coordinates& xyz, 
   std::uint32_t* const byte_offsets = prepared.byte_offsets.data();
   std::uint32_t* const firings = prepared.firings.of_point.data();
   std::size_t returns = 0;
-  for (std::uint32_t row = 0; row < cloud.height; ++row) {
+  // (rows of no point are not walked: a width of 0 may come with any height, and row_step 0)
+  const std::uint32_t rows = cloud.width == 0 ? 0 : cloud.height;
+  for (std::uint32_t row = 0; row < rows; ++row) {
     for (std::uint32_t column = 0; column < cloud.width; ++column) {
       const auto at = static_cast<std::uint32_t>(row * cloud.row_step + column * cloud.point_step);
       const std::uint8_t* const point = data + at;
@@ -178,6 +191,10 @@ PreparedCloud CloudProcessor::prepare(const sensor_msgs::PointCloud2::ConstPtr& 
   prepared.by_azimuth = time_field == nullptr && params_.azimuth.enabled;
   if (time_field == nullptr && !prepared.by_azimuth)
     throw noTimeField(cloud, time_config_);
+  // The time field is rewritten after x y z: it must not overlap them.
+  if (time_field != nullptr &&
+      (overlap(*time_field, xyz.x) || overlap(*time_field, xyz.y) || overlap(*time_field, xyz.z)))
+    throw core::InvalidInput("fields", "the time field " + time_field->name + " overlaps x, y or z");
 
   // One pass over the data: the returns, grouped into firings by their time field's value. Only the
   // returns' times count: a no-return point may carry any time, or none.
