@@ -44,7 +44,7 @@ void printUsage(std::FILE* to, const char* program) {
       "  --consistency-figure CSV   the same, and the points of the pair turning most to CSV\n"
       "  --quiet             no notes, no progress bar\n"
       "  --help              this text\n"
-      "PARAMETER: any of the node's parameters (README), with - or _:",
+      "PARAMETER: any of the node's parameters (docs/PARAMETERS.md), with - or _:",
       program);
   const auto& live_only = ros_adapter::DeskewParams::liveOnlyNames();
   for (const std::string& name : ros_adapter::DeskewParams::names()) {

@@ -32,10 +32,7 @@ const PointField& coordinateField(const sensor_msgs::PointCloud2& cloud, const s
 /// True when the values of two fields (of known datatypes) share a byte: writing one would change
 /// the other.
 bool overlap(const PointField& a, const PointField& b) {
-  std::uint64_t size_a = 0, size_b = 0;
-  withFieldType(a.datatype, [&](auto typed) { size_a = sizeof typed; });
-  withFieldType(b.datatype, [&](auto typed) { size_b = sizeof typed; });
-  return a.offset < b.offset + size_b && b.offset < a.offset + size_a;
+  return a.offset < b.offset + fieldSize(b.datatype) && b.offset < a.offset + fieldSize(a.datatype);
 }
 
 /// The x, y and z fields, of one datatype, apart.
@@ -177,6 +174,40 @@ void writeReturns(const Coordinates& xyz, std::uint32_t time_offset, double time
   }
 }
 
+/// Times the returns of a cloud without a time field from their azimuth (azimuth_timing): each one's
+/// offset [s] from the stamp, as a float64 field in seconds would hold it, grouped into firings. An
+/// organized cloud is handed over column by column, no-returns as NaN: a column was fired together.
+void timeByAzimuth(const AzimuthTiming& timing, PreparedCloud& prepared, FiringGrouper& grouper) {
+  const sensor_msgs::PointCloud2& cloud = *prepared.message;
+  const std::size_t returns = prepared.points.size();
+  std::vector<double> offsets(returns);
+  std::vector<std::uint32_t> columns(returns, 0);
+  if (cloud.height <= 1) {  // a dense cloud: in firing order as it is
+    azimuthOffsets(prepared.points, timing, offsets);
+  } else {
+    const std::size_t height = cloud.height;
+    std::vector<Eigen::Vector3d> by_column(
+        static_cast<std::size_t>(cloud.width) * height,
+        Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN()));
+    std::vector<std::size_t> entries(returns);
+    for (std::size_t i = 0; i < returns; ++i) {
+      const std::size_t row = prepared.byte_offsets[i] / cloud.row_step;
+      columns[i] =
+          static_cast<std::uint32_t>((prepared.byte_offsets[i] - row * cloud.row_step) / cloud.point_step);
+      entries[i] = columns[i] * height + row;
+      by_column[entries[i]] = prepared.points[i];
+    }
+    std::vector<double> by_column_offsets;
+    azimuthOffsets(by_column, timing, by_column_offsets, height);
+    for (std::size_t i = 0; i < returns; ++i)
+      offsets[i] = by_column_offsets[entries[i]];
+  }
+  prepared.firings.of_point.resize(returns);
+  for (std::size_t i = 0; i < returns; ++i)
+    prepared.firings.of_point[i] = grouper.firingOf(offsets[i], columns[i]);
+  prepared.time_field.datatype = PointField::FLOAT64;  // name "": no field to rewrite
+}
+
 }  // namespace
 
 PreparedCloud CloudProcessor::prepare(const sensor_msgs::PointCloud2::ConstPtr& message) const {
@@ -188,9 +219,10 @@ PreparedCloud CloudProcessor::prepare(const sensor_msgs::PointCloud2::ConstPtr& 
   const PointField* const time_field = timeFieldOf(cloud, time_config_);
   PreparedCloud prepared;
   prepared.message = message;
-  prepared.by_azimuth = time_field == nullptr && params_.azimuth.enabled;
-  if (time_field == nullptr && !prepared.by_azimuth)
+  const bool by_azimuth = time_field == nullptr && params_.azimuth.enabled;
+  if (time_field == nullptr && !by_azimuth)
     throw noTimeField(cloud, time_config_);
+  const std::string time_source = by_azimuth ? "the azimuth" : time_field->name;
   // The time field is rewritten after x y z: it must not overlap them.
   if (time_field != nullptr &&
       (overlap(*time_field, xyz.x) || overlap(*time_field, xyz.y) || overlap(*time_field, xyz.z)))
@@ -212,32 +244,19 @@ PreparedCloud CloudProcessor::prepare(const sensor_msgs::PointCloud2::ConstPtr& 
   });
   const std::size_t returns = prepared.points.size();
   const core::TimeNs stamp = toNs(cloud.header.stamp);
-  if (prepared.by_azimuth) {
-    // Offsets [s] from the stamp, as a float64 field in seconds would hold them.
-    std::vector<double> offsets;
-    azimuthValues(prepared, offsets);
-    prepared.firings.of_point.resize(returns);
-    for (std::size_t i = 0; i < returns; ++i) {
-      const std::size_t row = prepared.byte_offsets[i] / cloud.row_step;
-      const auto column =
-          static_cast<std::uint32_t>((prepared.byte_offsets[i] - row * cloud.row_step) / cloud.point_step);
-      prepared.firings.of_point[i] = grouper.firingOf(offsets[i], column);
-    }
-    prepared.time_field.datatype = PointField::FLOAT64;
-  }
+  if (by_azimuth)
+    timeByAzimuth(params_.azimuth, prepared, grouper);
   // Every return's value is its firing's: the range over the firings is the range over the returns.
   const std::vector<double>& values = grouper.values();
   double low = std::numeric_limits<double>::infinity();
   double high = -low;
   for (double value : values) {
     if (!std::isfinite(value))
-      throw core::InvalidInput("time field",
-                               (time_field != nullptr ? time_field->name : std::string("the azimuth")) +
-                                   " is not finite at some returns");
+      throw core::InvalidInput("time field", time_source + " is not finite at some returns");
     low = std::min(low, value);
     high = std::max(high, value);
   }
-  if (!prepared.by_azimuth)
+  if (!by_azimuth)
     prepared.time_field = decideTimeField(*time_field, low, high, stamp, time_config_);
   const CloudTimeField& field = prepared.time_field;
   // Within ROS time (less 100 s) before any conversion.
@@ -250,7 +269,7 @@ PreparedCloud CloudProcessor::prepare(const sensor_msgs::PointCloud2::ConstPtr& 
   prepared.last = returns == 0 ? stamp : timeOf(field, stamp, high);
   if (core::nsToSeconds(prepared.last - prepared.first) > params_.timing.max_sweep_duration) {
     throw core::InvalidInput("time field",
-                             (field.name.empty() ? std::string("the azimuth") : field.name) + " spans " +
+                             time_source + " spans " +
                                  formatNumber(core::nsToSeconds(prepared.last - prepared.first)) +
                                  " s, more than max_sweep_duration");
   }
@@ -262,30 +281,6 @@ PreparedCloud CloudProcessor::prepare(const sensor_msgs::PointCloud2::ConstPtr& 
     prepared.firings.offsets.push_back(core::nsToSeconds(time - prepared.first));
   }
   return prepared;
-}
-
-void CloudProcessor::azimuthValues(const PreparedCloud& prepared, std::vector<double>& values) const {
-  const sensor_msgs::PointCloud2& cloud = *prepared.message;
-  if (cloud.height <= 1) {  // a dense cloud: in firing order as it is
-    azimuthOffsets(prepared.points, params_.azimuth, values);
-    return;
-  }
-  // An organized cloud column by column, no-returns as NaN: a column's points were fired together.
-  const std::size_t height = cloud.height;
-  std::vector<Eigen::Vector3d> by_column(static_cast<std::size_t>(cloud.width) * height,
-                                         Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN()));
-  std::vector<std::size_t> entries(prepared.points.size());
-  for (std::size_t i = 0; i < entries.size(); ++i) {
-    const std::size_t row = prepared.byte_offsets[i] / cloud.row_step;
-    const std::size_t column = (prepared.byte_offsets[i] - row * cloud.row_step) / cloud.point_step;
-    entries[i] = column * height + row;
-    by_column[entries[i]] = prepared.points[i];
-  }
-  std::vector<double> offsets;
-  azimuthOffsets(by_column, params_.azimuth, offsets, height);
-  values.resize(entries.size());
-  for (std::size_t i = 0; i < entries.size(); ++i)
-    values[i] = offsets[entries[i]];
 }
 
 CloudOutputs CloudProcessor::correct(const PreparedCloud& prepared, const mrpt::poses::CPose3D& mount,
@@ -309,7 +304,7 @@ CloudOutputs CloudProcessor::correct(const PreparedCloud& prepared, const mrpt::
   }
   xyz.withType([&](auto coordinate) {
     using T = decltype(coordinate);
-    if (time.name.empty()) {  // timed by azimuth: no field to rewrite
+    if (prepared.byAzimuth()) {  // no field to rewrite
       writeReturns<T, void>(xyz, 0, 0.0, prepared.byte_offsets, corrected_, *output);
       return;
     }

@@ -6,7 +6,6 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
-#include <type_traits>
 
 #include "lidar_deskew/ros/conversions.h"
 
@@ -17,12 +16,6 @@ const char* const kTimeFieldNames[6] = {"t", "time", "timestamp", "time_stamp", 
 namespace {
 
 using sensor_msgs::PointField;
-
-std::size_t sizeOf(std::uint8_t datatype) {
-  std::size_t size = 0;
-  withFieldType(datatype, [&](auto typed) { size = sizeof typed; });
-  return size;
-}
 
 std::string typeName(std::uint8_t datatype) {
   switch (datatype) {
@@ -106,7 +99,7 @@ void checkCloudLayout(const sensor_msgs::PointCloud2& cloud) {
   if (cloud.point_step == 0 && cloud.width * static_cast<std::uint64_t>(cloud.height) > 0)
     throw core::InvalidInput("point_step", "is 0");
   for (const PointField& field : cloud.fields) {
-    const std::size_t size = sizeOf(field.datatype);
+    const std::size_t size = fieldSize(field.datatype);
     if (size == 0)
       throw core::InvalidInput("fields",
                                field.name + " has unknown datatype " + std::to_string(field.datatype));
@@ -119,6 +112,12 @@ void checkCloudLayout(const sensor_msgs::PointCloud2& cloud) {
     throw core::InvalidInput("data", "holds less than height x row_step bytes");
   if (cloud.data.size() > std::numeric_limits<std::uint32_t>::max())
     throw core::InvalidInput("data", "holds more than 4 GiB");
+}
+
+std::size_t fieldSize(std::uint8_t datatype) {
+  std::size_t size = 0;
+  withFieldType(datatype, [&](auto typed) { size = sizeof typed; });
+  return size;
 }
 
 double readNumber(const std::uint8_t* point, std::uint8_t datatype) {
@@ -153,54 +152,6 @@ core::InvalidInput noTimeField(const sensor_msgs::PointCloud2& cloud, const Clou
                             : "no field '" + config.field + "'") +
           " in the cloud; its fields: " + fieldList(cloud) +
           " (set time_field, or azimuth_timing for a spinning sensor)");
-}
-
-void readFieldValues(const sensor_msgs::PointCloud2& cloud, const PointField& field,
-                     const std::vector<std::uint32_t>& points, std::vector<double>& values, double& low,
-                     double& high) {
-  values.resize(points.size());
-  low = std::numeric_limits<double>::infinity();
-  high = -low;
-  const std::uint8_t* const data = cloud.data.data() + field.offset;
-  bool finite = true;
-  withFieldType(field.datatype, [&](auto typed) {
-    // Two running ranges (even and odd points), so that one point's comparison need not wait for the
-    // last's.
-    double low_even = low, low_odd = low, high_even = high, high_odd = high;
-    const std::size_t count = points.size();
-    const auto read = [&](std::size_t i) {
-      std::memcpy(&typed, data + points[i], sizeof typed);
-      if constexpr (std::is_floating_point_v<decltype(typed)>)
-        finite &= std::isfinite(typed);
-      return values[i] = static_cast<double>(typed);
-    };
-    std::size_t i = 0;
-    for (; i + 1 < count; i += 2) {
-      const double even = read(i);
-      const double odd = read(i + 1);
-      low_even = std::min(low_even, even);
-      high_even = std::max(high_even, even);
-      low_odd = std::min(low_odd, odd);
-      high_odd = std::max(high_odd, odd);
-    }
-    if (i < count) {
-      const double last = read(i);
-      low_even = std::min(low_even, last);
-      high_even = std::max(high_even, last);
-    }
-    low = std::min(low_even, low_odd);
-    high = std::max(high_even, high_odd);
-  });
-  if (!finite) {
-    for (std::size_t i = 0; i < values.size(); ++i) {
-      if (!std::isfinite(values[i])) {
-        const std::size_t row = points[i] / cloud.row_step;
-        const std::size_t index = row * cloud.width + (points[i] - row * cloud.row_step) / cloud.point_step;
-        throw core::InvalidInput("time field",
-                                 field.name + " of point " + std::to_string(index) + " is not finite");
-      }
-    }
-  }
 }
 
 CloudTimeField decideTimeField(const PointField& field, double low, double high, core::TimeNs stamp_ns,
@@ -273,40 +224,29 @@ core::TimeNs timeOf(const CloudTimeField& field, core::TimeNs stamp, double valu
          static_cast<core::TimeNs>(std::llround((value - whole) * static_cast<double>(unit_ns)));
 }
 
-void timesOf(const CloudTimeField& field, core::TimeNs stamp, const std::vector<double>& values,
-             std::vector<core::TimeNs>& times) {
-  times.resize(values.size());
-  if (isInteger(field.datatype)) {  // timeOf(), the fraction being 0
-    const core::TimeNs base = field.absolute ? 0 : stamp;
-    const auto unit_ns = static_cast<core::TimeNs>(std::llround(field.unit * 1e9));
-    for (std::size_t i = 0; i < values.size(); ++i)
-      times[i] = base + static_cast<core::TimeNs>(values[i]) * unit_ns;
-    return;
-  }
-  // Consecutive points of one firing share a value: converted once.
-  double previous = std::numeric_limits<double>::quiet_NaN();
-  core::TimeNs time = 0;
-  for (std::size_t i = 0; i < values.size(); ++i) {
-    if (values[i] != previous) {
-      time = timeOf(field, stamp, values[i]);
-      previous = values[i];
-    }
-    times[i] = time;
-  }
-}
-
 namespace {
 
-/// Byte offsets of the points of a cloud that `returns` counts (every point when null), in index order.
-std::vector<std::uint32_t> returnOffsets(const sensor_msgs::PointCloud2& cloud,
-                                         const std::vector<bool>* returns) {
-  std::vector<std::uint32_t> offsets;
+/// The values of `field` of the points of a cloud that `returns` counts (every point when null), in
+/// index order, with their range (low > high when there are none). Throws core::InvalidInput naming
+/// the field and the point for a value that is not finite.
+std::vector<double> returnValues(const sensor_msgs::PointCloud2& cloud, const PointField& field,
+                                 const std::vector<bool>* returns, double& low, double& high) {
+  std::vector<double> values;
+  low = std::numeric_limits<double>::infinity();
+  high = -low;
   const std::size_t count = static_cast<std::size_t>(cloud.width) * cloud.height;
   for (std::size_t i = 0; i < count; ++i) {
-    if (returns == nullptr || (*returns)[i])
-      offsets.push_back(static_cast<std::uint32_t>(pointOffset(cloud, i)));
+    if (returns != nullptr && !(*returns)[i])
+      continue;
+    const double value = readNumber(&cloud.data[pointOffset(cloud, i) + field.offset], field.datatype);
+    if (!std::isfinite(value))
+      throw core::InvalidInput("time field",
+                               field.name + " of point " + std::to_string(i) + " is not finite");
+    values.push_back(value);
+    low = std::min(low, value);
+    high = std::max(high, value);
   }
-  return offsets;
+  return values;
 }
 
 }  // namespace
@@ -316,9 +256,8 @@ CloudTimeField findTimeField(const sensor_msgs::PointCloud2& cloud, const CloudT
   const PointField* field = timeFieldOf(cloud, config);
   if (field == nullptr)
     throw noTimeField(cloud, config);
-  std::vector<double> values;
   double low, high;
-  readFieldValues(cloud, *field, returnOffsets(cloud, returns), values, low, high);
+  returnValues(cloud, *field, returns, low, high);
   return decideTimeField(*field, low, high, toNs(cloud.header.stamp), config);
 }
 
@@ -328,16 +267,14 @@ void pointTimes(const sensor_msgs::PointCloud2& cloud, const CloudTimeField& fie
   at.name = field.name;
   at.offset = field.offset;
   at.datatype = field.datatype;
-  std::vector<double> values;
   double low, high;
-  readFieldValues(cloud, at, returnOffsets(cloud, returns), values, low, high);
-  std::vector<core::TimeNs> of_returns;
-  timesOf(field, toNs(cloud.header.stamp), values, of_returns);
+  const std::vector<double> values = returnValues(cloud, at, returns, low, high);
+  const core::TimeNs stamp = toNs(cloud.header.stamp);
   const std::size_t count = static_cast<std::size_t>(cloud.width) * cloud.height;
-  times.assign(count, toNs(cloud.header.stamp));  // no return: its time is not read
+  times.assign(count, stamp);  // no return: its time is not read
   for (std::size_t i = 0, k = 0; i < count; ++i) {
     if (returns == nullptr || (*returns)[i])
-      times[i] = of_returns[k++];
+      times[i] = timeOf(field, stamp, values[k++]);
   }
 }
 

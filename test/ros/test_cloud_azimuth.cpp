@@ -379,7 +379,7 @@ TEST(CloudAzimuth, CloudProcessorTimesACloudWithoutTimeField) {
         c.convention, kEpoch, "lidar"));
     ros_adapter::DeskewParams params;
     const ros_adapter::PreparedCloud by_field = ros_adapter::CloudProcessor(params).prepare(timed);
-    ASSERT_FALSE(by_field.by_azimuth);
+    ASSERT_FALSE(by_field.byAzimuth());
     auto untimed = boost::make_shared<sensor_msgs::PointCloud2>(*timed);
     for (sensor_msgs::PointField& field : untimed->fields) {
       if (field.name == by_field.time_field.name)
@@ -388,7 +388,7 @@ TEST(CloudAzimuth, CloudProcessorTimesACloudWithoutTimeField) {
     EXPECT_THROW(ros_adapter::CloudProcessor(params).prepare(untimed), core::InvalidInput);
     params.azimuth = timingOf(c.direction, "start");
     const ros_adapter::PreparedCloud by_azimuth = ros_adapter::CloudProcessor(params).prepare(untimed);
-    EXPECT_TRUE(by_azimuth.by_azimuth);
+    EXPECT_TRUE(by_azimuth.byAzimuth());
     EXPECT_NE(by_azimuth.timingFallback(), nullptr);
     ASSERT_EQ(by_azimuth.points.size(), by_field.points.size());
     core::TimeNs worst = 0;

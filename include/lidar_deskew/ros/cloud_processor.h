@@ -30,16 +30,17 @@ struct PreparedCloud {
   std::vector<core::TimeNs> firing_times;  ///< [ns] of each firing, exact
   core::TimeNs first = 0;                  ///< [ns] earliest return (header.stamp when none)
   core::TimeNs last = 0;                   ///< [ns] latest return
-  bool by_azimuth = false;                 ///< timed by azimuth_timing
 
+  /// Timed by azimuth_timing (no time field).
+  bool byAzimuth() const { return time_field.name.empty(); }
   /// [ns] Return i's time.
   core::TimeNs timeOf(std::size_t i) const { return firing_times[firings.of_point[i]]; }
   core::TimeNs earliest() const { return first; }
   core::TimeNs latest() const { return last; }
   /// How the cloud was timed, when not by its own time field.
   const char* timingFallback() const {
-    return by_azimuth ? "clouds have no time field; point times come from their azimuth (azimuth_timing)"
-                      : nullptr;
+    return byAzimuth() ? "clouds have no time field; point times come from their azimuth (azimuth_timing)"
+                       : nullptr;
   }
 };
 
@@ -78,8 +79,6 @@ class CloudProcessor {
   CloudOutputs passThrough(const PreparedCloud& prepared) const;
 
  private:
-  /// With azimuth_timing: each return's offset [s] from the stamp, from its azimuth.
-  void azimuthValues(const PreparedCloud& prepared, std::vector<double>& values) const;
   /// The planar scan of the finite `points` within the height band (nearest per bin).
   sensor_msgs::LaserScan::ConstPtr planarScan(const std::vector<Eigen::Vector3d>& points,
                                               const std_msgs::Header& header) const;

@@ -76,6 +76,9 @@ bool withFieldType(std::uint8_t datatype, Visit&& visit) {
   return false;
 }
 
+/// Bytes of a value of a PointField datatype; 0 for an unknown one.
+std::size_t fieldSize(std::uint8_t datatype);
+
 /// Reads a numeric field of the point at byte offset `at` (of any PointField datatype) as a double.
 double readNumber(const std::uint8_t* point, std::uint8_t datatype);
 
@@ -85,13 +88,6 @@ const sensor_msgs::PointField* timeFieldOf(const sensor_msgs::PointCloud2& cloud
 
 /// The error for a cloud without a time field: names the fields it has.
 core::InvalidInput noTimeField(const sensor_msgs::PointCloud2& cloud, const CloudTimeConfig& config);
-
-/// The values of `field` of the points that start at byte `points[i]` of cloud.data, as doubles
-/// (exact for every PointField datatype), with their range (low > high when there are none). Throws
-/// core::InvalidInput naming the field and the point for a value that is not finite.
-void readFieldValues(const sensor_msgs::PointCloud2& cloud, const sensor_msgs::PointField& field,
-                     const std::vector<std::uint32_t>& points, std::vector<double>& values, double& low,
-                     double& high);
 
 /// Decides the unit and base of a time field from its values' range [low, high] over the returns
 /// (low > high: none) against header.stamp: absolute when, in some unit, the values lie within
@@ -108,11 +104,8 @@ CloudTimeField decideTimeField(const sensor_msgs::PointField& field, double low,
 /// holds; increases with the value. The value times the unit must lie within ROS time.
 core::TimeNs timeOf(const CloudTimeField& field, core::TimeNs stamp, double value);
 
-/// timeOf() of each value.
-void timesOf(const CloudTimeField& field, core::TimeNs stamp, const std::vector<double>& values,
-             std::vector<core::TimeNs>& times);
-
-/// The above over a whole cloud in index order: finds the time field and decides it from the values of
+/// timeFieldOf() and decideTimeField() over a whole cloud in index order (the node reads a cloud in
+/// one pass in CloudProcessor::prepare instead): finds the time field and decides it from the values of
 /// the returns (`returns[i]`; every point when null). Throws core::InvalidInput("time field") naming
 /// the cloud's fields when there is none, or when its values fit no unit. The layout must be checked.
 CloudTimeField findTimeField(const sensor_msgs::PointCloud2& cloud, const CloudTimeConfig& config,
