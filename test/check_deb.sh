@@ -135,7 +135,7 @@ files=$(dpkg-deb -c "$deb" | awk '{print $6}')
 echo "$(echo "$files" | wc -l) entries"
 multiarch=$(dpkg-architecture -qDEB_HOST_MULTIARCH)
 for path in usr/lib/lidar_deskew/deskew_node usr/lib/lidar_deskew/deskew_bag usr/lib/lidar_deskew/deskew_simulate \
-  usr/lib/lidar_deskew/deskew_metrics usr/lib/lidar_deskew/deskew_core_demo \
+  usr/lib/lidar_deskew/deskew_metrics usr/lib/lidar_deskew/deskew_core_demo usr/lib/lidar_deskew/deskew_calibrate \
   "usr/lib/$multiarch/liblidar_deskew_nodelets.so" "usr/lib/$multiarch/liblidar_deskew_core.so" \
   "usr/lib/$multiarch/cmake/lidar_deskew/lidar_deskewConfig.cmake" usr/include/lidar_deskew/core/deskew.h \
   usr/share/lidar_deskew/package.xml usr/share/lidar_deskew/nodelets.xml usr/share/lidar_deskew/launch/deskew.launch \

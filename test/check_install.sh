@@ -15,6 +15,7 @@ for path in \
   lib/lidar_deskew/deskew_core_demo \
   lib/lidar_deskew/deskew_simulate \
   lib/lidar_deskew/deskew_metrics \
+  lib/lidar_deskew/deskew_calibrate \
   include/lidar_deskew/core/deskew.h \
   include/lidar_deskew/core/rebin.h \
   include/lidar_deskew/sim/sim.h \

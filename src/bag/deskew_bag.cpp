@@ -28,7 +28,7 @@ void printUsage(std::FILE* to, const char* program) {
   std::fprintf(
       to,
       "usage: %s IN.bag OUT.bag [--scan-topic T]... [--cloud-topic T]... [--replace]\n"
-      "          [--compression none|bz2|lz4]\n"
+      "          [--compression none|bz2|lz4] [--params FILE.yaml]\n"
       "          [--consistency] [--consistency-figure CSV] [--quiet] [--PARAMETER VALUE]...\n"
       "\n"
       "Corrects the LaserScans and PointCloud2s of IN.bag with the live nodes' pipeline; writes every\n"
@@ -40,7 +40,10 @@ void printUsage(std::FILE* to, const char* program) {
       "                      found alone (t, time, timestamp, time_stamp, offset_time, stamps)\n"
       "  --replace           corrected scan on T itself, the raw one on T_raw\n"
       "  --compression C     of OUT.bag: none (default), bz2 or lz4\n"
-      "  --consistency       print how well consecutive scans agree while turning, raw and corrected\n"
+      "  --params FILE.yaml  parameters from a file, as the node's launch `params:=FILE` (e.g. one\n"
+      "                      deskew_calibrate wrote); --PARAMETER options win over it\n"
+      "  --consistency       print how well overlapping scans agree, raw and corrected (robust\n"
+      "                      point-to-line distance over every overlapping pair, with its spread)\n"
       "  --consistency-figure CSV   the same, and the points of the pair turning most to CSV\n"
       "  --quiet             no notes, no progress bar\n"
       "  --help              this text\n"
@@ -76,7 +79,7 @@ int main(int argc, char** argv) {
   bag::BagDeskewOptions options;
   std::map<std::string, std::string> parameters;
   bool quiet = false, consistency = false;
-  std::string consistency_figure;
+  std::string consistency_figure, params_file;
   std::vector<std::string> positional;
   const auto& names = ros_adapter::DeskewParams::names();
   const auto& live_only = ros_adapter::DeskewParams::liveOnlyNames();
@@ -93,7 +96,7 @@ int main(int argc, char** argv) {
     } else if (arg == "--quiet") {
       quiet = true;
     } else if (arg == "--scan-topic" || arg == "--cloud-topic" || arg == "--compression" ||
-               arg == "--consistency-figure") {
+               arg == "--consistency-figure" || arg == "--params") {
       if (!has_value)
         return usageError(argv[0], arg + " needs a value");
       const std::string value = argv[++a];
@@ -103,6 +106,8 @@ int main(int argc, char** argv) {
         options.cloud_topics.push_back(value);
       } else if (arg == "--compression") {
         options.compression = value;
+      } else if (arg == "--params") {
+        params_file = value;
       } else {
         consistency = true;
         consistency_figure = value;
@@ -157,6 +162,23 @@ int main(int argc, char** argv) {
     };
   }
   try {
+    if (!params_file.empty()) {
+      // The node's parameter file: its live-only parameters mean nothing here and are left out.
+      std::map<std::string, std::string> from_file = ros_adapter::readParamFile(params_file);
+      std::vector<std::string> given;
+      for (const auto& entry : from_file)
+        given.push_back(entry.first);
+      const std::vector<std::string> unknown = ros_adapter::DeskewParams::unknownNames(given);
+      if (!unknown.empty()) {
+        std::string list;
+        for (const std::string& name : unknown)
+          list += (list.empty() ? "" : ", ") + name;
+        throw std::runtime_error(params_file + ": unknown parameter(s): " + list);
+      }
+      for (const std::string& name : live_only)
+        from_file.erase(name);
+      parameters.insert(from_file.begin(), from_file.end());  // the command line's win
+    }
     options.params = ros_adapter::DeskewParams::load(ros_adapter::TextParams(parameters));
     const bag::BagDeskewSummary summary = bag::deskewBag(options);
     // The output is complete: from here on Ctrl-C ends the program as usual.
@@ -174,11 +196,16 @@ int main(int argc, char** argv) {
           continue;  // the consistency measure is of planar scans
         const std::string corrected = options.replace ? topic : topic + "_deskewed";
         const std::string raw = options.replace ? topic + "_raw" : topic;
-        const eval::ConsistencyReport report = eval::measureConsistency(
-            options.output, raw, corrected, options.params, 0.1, 0.3, consistency_figure);
+        const eval::ConsistencyReport report =
+            eval::measureConsistency(options.output, raw, corrected, options.params, 0.3, consistency_figure);
         std::printf(
-            "  %s while turning (%zu scan pairs): consecutive scans %.1f mm apart raw, %.1f mm corrected\n",
-            topic.c_str(), report.turning_pairs, report.raw_mm, report.corrected_mm);
+            "  %s consistency (robust point-to-line distance between overlapping scans):\n"
+            "    every pair: raw %s, corrected %s\n"
+            "    pairs with a scan turning at 0.3 rad/s or faster: raw %s, corrected %s\n",
+            topic.c_str(), eval::formatConsistency(report.raw).c_str(),
+            eval::formatConsistency(report.corrected).c_str(),
+            eval::formatConsistency(report.raw_turning).c_str(),
+            eval::formatConsistency(report.corrected_turning).c_str());
       }
     }
   } catch (const bag::Interrupted& error) {

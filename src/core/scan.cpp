@@ -37,6 +37,18 @@ Reference parseReference(const std::string& text) {
   throw InvalidInput("reference", "must be 'start', 'middle' or 'end', got '" + text + "'");
 }
 
+BeamOrder parseBeamOrder(const std::string& text) {
+  if (text == "as_message")
+    return BeamOrder::kAsMessage;
+  if (text == "reversed")
+    return BeamOrder::kReversed;
+  throw InvalidInput("beam_order", "must be 'as_message' or 'reversed', got '" + text + "'");
+}
+
+std::string toString(BeamOrder value) {
+  return value == BeamOrder::kAsMessage ? "as_message" : "reversed";
+}
+
 std::string toString(StampAt value) {
   return value == StampAt::kStart ? "start" : "end";
 }
@@ -63,6 +75,10 @@ void TimingConfig::validate() const {
   if (!std::isfinite(max_sweep_duration) || max_sweep_duration <= 0.0) {
     throw InvalidInput("max_sweep_duration", "must be > 0 s, got " + std::to_string(max_sweep_duration));
   }
+  if (!std::isfinite(time_offset) || std::abs(time_offset) > 60.0)
+    throw InvalidInput("time_offset", "must be within +-60 s, got " + std::to_string(time_offset));
+  if (use_scan_period && scan_period <= 0.0)
+    throw InvalidInput("use_scan_period", "needs scan_period > 0");
 }
 
 TimeNs BeamTiming::earliestBeamTime() const {
@@ -124,7 +140,10 @@ BeamTiming resolveTiming(const PlanarScan& scan, const TimingConfig& config) {
   BeamTiming timing;
   timing.beam_count = scan.ranges.size();
   const double revolution_share = std::abs(static_cast<double>(scan.angle_increment)) / kTwoPi;
-  if (scan.time_increment != 0.0f) {
+  if (config.use_scan_period) {
+    timing.beam_period = config.scan_period * revolution_share * (scan.time_increment < 0.0f ? -1.0 : 1.0);
+    timing.source = TimingSource::kScanPeriodSet;
+  } else if (scan.time_increment != 0.0f) {
     timing.beam_period = scan.time_increment;
     timing.source = TimingSource::kTimeIncrement;
   } else if (scan.scan_time > 0.0f) {
@@ -138,6 +157,8 @@ BeamTiming resolveTiming(const PlanarScan& scan, const TimingConfig& config) {
         "time_increment",
         "is 0 and so is scan_time; set the scan_period parameter to the sensor's revolution time");
   }
+  if (config.beam_order == BeamOrder::kReversed)
+    timing.beam_period = -timing.beam_period;
   const double sweep =
       std::abs(timing.beam_period) * static_cast<double>(timing.beam_count > 0 ? timing.beam_count - 1 : 0);
   if (sweep > config.max_sweep_duration) {
@@ -148,10 +169,11 @@ BeamTiming resolveTiming(const PlanarScan& scan, const TimingConfig& config) {
   }
   const TimeNs sweep_ns = secondsToNs(sweep);
   // With a negative period the latest beam is beam 0, the earliest beam n-1.
+  const TimeNs stamp = scan.stamp + secondsToNs(config.time_offset);
   const bool stamp_is_beam0 = (config.stamp_at == StampAt::kStart) == (timing.beam_period >= 0.0);
-  timing.first_beam_time = stamp_is_beam0                     ? scan.stamp
-                           : config.stamp_at == StampAt::kEnd ? scan.stamp - sweep_ns
-                                                              : scan.stamp + sweep_ns;
+  timing.first_beam_time = stamp_is_beam0                     ? stamp
+                           : config.stamp_at == StampAt::kEnd ? stamp - sweep_ns
+                                                              : stamp + sweep_ns;
   return timing;
 }
 

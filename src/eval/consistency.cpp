@@ -4,8 +4,8 @@
 #include <rosbag/view.h>
 #include <sensor_msgs/LaserScan.h>
 
-#include <Eigen/Core>
 #include <cmath>
+#include <cstdio>
 #include <fstream>
 #include <map>
 #include <memory>
@@ -19,10 +19,17 @@ namespace lidar_deskew::eval {
 
 using ros_adapter::toNs;
 
+std::string formatConsistency(const core::ConsistencySummary& summary) {
+  char text[96];
+  std::snprintf(text, sizeof text, "%.1f mm (spread %.1f, %zu pairs)", summary.mean * 1e3,
+                summary.spread * 1e3, summary.pairs);
+  return text;
+}
+
 ConsistencyReport measureConsistency(const std::string& bag_path, const std::string& scan_topic,
                                      const std::string& corrected_topic,
-                                     const ros_adapter::DeskewParams& params, double min_turn,
-                                     double max_pair, const std::string& figure_csv) {
+                                     const ros_adapter::DeskewParams& params, double turning_rate,
+                                     const std::string& figure_csv) {
   rosbag::Bag bag = ros_adapter::openBagForReading(bag_path);
   const std::unique_ptr<ros_adapter::TfFeed> tf =
       loadRecordedTf(bag, bag_path, params.fixed_frame, params.base_frame);
@@ -41,86 +48,86 @@ ConsistencyReport measureConsistency(const std::string& bag_path, const std::str
     throw std::runtime_error(bag_path + ": scans on " + scan_topic +
                              " have repeated header.seq; cannot pair them");
   }
-  // Points of a scan in the fixed frame, placed with tf at the scan's stamp and the chosen mount.
-  const auto inFixedFrame = [&](const sensor_msgs::LaserScan& scan, std::vector<Eigen::Vector2d>& points) {
-    points.clear();
+  // A scan's ranges in the fixed frame, every beam placed with tf at the scan's stamp.
+  const auto place = [&](const sensor_msgs::LaserScan& scan) {
     std::string error;
     const auto mount = tf->mount(ros_adapter::normalizedFrame(scan.header.frame_id), error);
     if (!mount)
       throw std::runtime_error(bag_path + ": no laser mount: " + error);
     const mrpt::poses::CPose3D laser = tf->motion().basePose(toNs(scan.header.stamp)) + *mount;
+    std::vector<Eigen::Vector2d> points;
+    const core::PlanarScan planar = ros_adapter::fromMsg(scan);
+    const core::ReturnTest is_return(planar);
     for (std::size_t i = 0; i < scan.ranges.size(); ++i) {
-      const float range = scan.ranges[i];
-      if (!std::isfinite(range) || range <= 0.0f || range < scan.range_min || range > scan.range_max)
+      if (!is_return(scan.ranges[i]))
         continue;
       const double angle = scan.angle_min + i * static_cast<double>(scan.angle_increment);
       double x, y, z;
-      laser.composePoint(range * std::cos(angle), range * std::sin(angle), 0.0, x, y, z);
+      laser.composePoint(scan.ranges[i] * std::cos(angle), scan.ranges[i] * std::sin(angle), 0.0, x, y, z);
       points.emplace_back(x, y);
     }
+    return core::PlacedScan(toNs(scan.header.stamp), {laser.x(), laser.y()},
+                            std::abs(static_cast<double>(scan.angle_increment)), std::move(points));
   };
-  const auto meanNearest = [&](const std::vector<Eigen::Vector2d>& from,
-                               const std::vector<Eigen::Vector2d>& to) {
-    double sum = 0.0;
-    std::size_t count = 0;
-    for (const Eigen::Vector2d& p : from) {
-      double nearest = INFINITY;
-      for (const Eigen::Vector2d& q : to)
-        nearest = std::min(nearest, (p - q).squaredNorm());
-      nearest = std::sqrt(nearest);
-      if (nearest <= max_pair) {
-        sum += nearest;
-        ++count;
-      }
-    }
-    return count ? sum / count : -1.0;
-  };
-
-  ConsistencyReport report;
-  double raw_sum = 0.0, corrected_sum = 0.0, largest_turn = 0.0;
-  std::vector<Eigen::Vector2d> raw_a, raw_b, corrected_a, corrected_b;
-  for (std::size_t k = 0; k + 1 < raw.size(); ++k) {
-    const auto first = corrected_by_seq.find(raw[k]->header.seq);
-    const auto second = corrected_by_seq.find(raw[k + 1]->header.seq);
-    if (first == corrected_by_seq.end() || second == corrected_by_seq.end())
+  std::vector<core::PlacedScan> raw_placed, corrected_placed;
+  std::vector<double> turn_rates;
+  for (const auto& scan : raw) {
+    const auto match = corrected_by_seq.find(scan->header.seq);
+    if (match == corrected_by_seq.end() || scan->ranges.empty() || scan->angle_increment == 0.0f)
       continue;  // not corrected (no tf)
-    double turn;
     try {
-      const double yaw_a = tf->motion().basePose(toNs(raw[k]->header.stamp)).yaw();
-      const double yaw_b = tf->motion().basePose(toNs(raw[k + 1]->header.stamp)).yaw();
-      turn = std::abs(std::remainder(yaw_b - yaw_a, 2.0 * M_PI));
-      if (turn < min_turn)
-        continue;
-      inFixedFrame(*raw[k], raw_a);
-      inFixedFrame(*raw[k + 1], raw_b);
-      inFixedFrame(*first->second, corrected_a);
-      inFixedFrame(*second->second, corrected_b);
+      const core::TimeNs start = toNs(scan->header.stamp);
+      const double span = scan->scan_time > 0.0f ? scan->scan_time : 0.1;
+      const double turn = std::remainder(
+          tf->motion().basePose(start + core::secondsToNs(span)).yaw() - tf->motion().basePose(start).yaw(),
+          2.0 * M_PI);
+      core::PlacedScan placed_raw = place(*scan);
+      core::PlacedScan placed_corrected = place(*match->second);
+      raw_placed.push_back(std::move(placed_raw));
+      corrected_placed.push_back(std::move(placed_corrected));
+      turn_rates.push_back(std::abs(turn) / span);
     } catch (const core::MotionUnavailable&) {
-      continue;  // tf does not cover this pair
+      continue;  // tf does not cover this scan
     }
-    const double raw_distance = meanNearest(raw_b, raw_a);
-    const double corrected_distance = meanNearest(corrected_b, corrected_a);
-    if (raw_distance < 0.0 || corrected_distance < 0.0)
-      continue;
-    raw_sum += raw_distance;
-    corrected_sum += corrected_distance;
-    ++report.turning_pairs;
-    if (!figure_csv.empty() && turn > largest_turn) {
+  }
+  const core::ConsistencyConfig config;
+  const auto pairs = core::overlappingPairs(corrected_placed, core::PairSelection(), config);
+  std::vector<double> raw_all, corrected_all, raw_turning, corrected_turning;
+  double largest_turn = -1.0;
+  std::size_t figure_pair = pairs.size();
+  for (std::size_t p = 0; p < pairs.size(); ++p) {
+    const auto [earlier, later] = pairs[p];
+    const double raw_distance = core::pairDistance(raw_placed[later], raw_placed[earlier], config);
+    const double corrected_distance =
+        core::pairDistance(corrected_placed[later], corrected_placed[earlier], config);
+    raw_all.push_back(raw_distance);
+    corrected_all.push_back(corrected_distance);
+    const double turn = std::max(turn_rates[earlier], turn_rates[later]);
+    if (turn >= turning_rate) {
+      raw_turning.push_back(raw_distance);
+      corrected_turning.push_back(corrected_distance);
+    }
+    if (turn > largest_turn) {
       largest_turn = turn;
-      std::ofstream out(figure_csv);
-      out << "kind,x,y\n";
-      for (const auto& [kind, points] :
-           {std::pair{"raw_a", &raw_a}, std::pair{"raw_b", &raw_b}, std::pair{"corrected_a", &corrected_a},
-            std::pair{"corrected_b", &corrected_b}}) {
-        for (const Eigen::Vector2d& p : *points)
-          out << kind << "," << p.x() << "," << p.y() << "\n";
-      }
+      figure_pair = p;
     }
   }
-  if (report.turning_pairs) {
-    report.raw_mm = 1e3 * raw_sum / report.turning_pairs;
-    report.corrected_mm = 1e3 * corrected_sum / report.turning_pairs;
+  if (!figure_csv.empty() && figure_pair < pairs.size()) {
+    const auto [a, b] = pairs[figure_pair];
+    std::ofstream out(figure_csv);
+    out << "kind,x,y\n";
+    for (const auto& [kind, scan] :
+         {std::pair{"raw_a", &raw_placed[a]}, std::pair{"raw_b", &raw_placed[b]},
+          std::pair{"corrected_a", &corrected_placed[a]}, std::pair{"corrected_b", &corrected_placed[b]}}) {
+      for (const Eigen::Vector2d& point : scan->points())
+        out << kind << "," << point.x() << "," << point.y() << "\n";
+    }
   }
+  ConsistencyReport report;
+  report.raw = core::summarize(raw_all);
+  report.corrected = core::summarize(corrected_all);
+  report.raw_turning = core::summarize(raw_turning);
+  report.corrected_turning = core::summarize(corrected_turning);
   return report;
 }
 

@@ -3,7 +3,7 @@
 // transformLaserScanToPointCloud.
 //
 //   deskew_metrics BAG TRUTH [--markdown] [--knot-interval S] [--rebin-gap-factor F] [--rebin-min-gap M]
-//                  [--figure-csv FILE] [--figure-scan K]
+//                  [--params FILE.yaml] [--figure-csv FILE] [--figure-scan K]
 //   deskew_metrics --cloud BAG TRUTH [--markdown]   (a multi-line bag of deskew_simulate --cloud-scenario:
 //                  raw, constant velocity between two poses, ours, one tf lookup per point, the noise
 //                  floor (corrected with the true trajectory) and ours / floor as a ratio of RMS)
@@ -15,6 +15,7 @@
 
 #include "lidar_deskew/eval/cloud_evaluate.h"
 #include "lidar_deskew/eval/evaluate.h"
+#include "lidar_deskew/ros/deskew_params.h"
 
 namespace {
 
@@ -22,7 +23,7 @@ int usage(const char* program) {
   std::fprintf(
       stderr,
       "usage: %s BAG TRUTH [--markdown] [--knot-interval S] [--rebin-gap-factor F] [--rebin-min-gap M]\n"
-      "          [--figure-csv FILE] [--figure-scan K]\n"
+      "          [--params FILE.yaml (the timing parameters)] [--figure-csv FILE] [--figure-scan K]\n"
       "       %s --cloud BAG TRUTH [--markdown]\n",
       program, program);
   return 2;
@@ -93,6 +94,11 @@ int main(int argc, char** argv) {
       options.rebin.min_gap = std::atof(argv[++a]);
     } else if (arg == "--figure-csv" && has_value) {
       options.figure_csv = argv[++a];
+    } else if (arg == "--params" && has_value) {
+      // The scans' timing as the node and deskew_bag would read it (e.g. deskew_calibrate's file).
+      options.timing =
+          ros_adapter::DeskewParams::load(ros_adapter::TextParams(ros_adapter::readParamFile(argv[++a])))
+              .timing;
     } else if (arg == "--figure-scan" && has_value) {
       options.figure_scan = static_cast<std::size_t>(std::strtoul(argv[++a], nullptr, 10));
     } else if (!arg.empty() && arg[0] != '-' && bag_path.empty()) {

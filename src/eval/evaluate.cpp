@@ -102,7 +102,7 @@ Evaluation evaluateBag(const std::string& bag_path, const std::string& truth_pat
   for (std::size_t k = 0; k < scans.size(); ++k) {
     const sensor_msgs::LaserScan& message = *scans[k];
     const core::PlanarScan scan = fromMsg(message);
-    const core::BeamTiming timing = core::resolveTiming(scan, core::TimingConfig());
+    const core::BeamTiming timing = core::resolveTiming(scan, options.timing);
     mrpt::poses::CPose3D mount;
     core::DeskewedScan corrected;
     sensor_msgs::PointCloud2 projected;

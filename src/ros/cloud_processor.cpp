@@ -72,7 +72,10 @@ void store(std::uint8_t* at, T value) {
 }  // namespace
 
 CloudProcessor::CloudProcessor(const DeskewParams& params)
-    : params_(params), time_config_(params.cloud_time), deskewer_(params.deskew) {
+    : params_(params),
+      time_config_(params.cloud_time),
+      time_offset_(core::secondsToNs(params.timing.time_offset)),
+      deskewer_(params.deskew) {
   time_config_.max_sweep_duration = params.timing.max_sweep_duration;
   time_config_.validate();
   // The planar scan's band and grid, pairwise (each bound alone is checked with the parameters).
@@ -277,9 +280,14 @@ PreparedCloud CloudProcessor::prepare(const sensor_msgs::PointCloud2::ConstPtr& 
   prepared.firing_times.reserve(values.size());
   for (double value : values) {
     const core::TimeNs time = timeOf(field, stamp, value);
-    prepared.firing_times.push_back(time);
+    prepared.firing_times.push_back(time + time_offset_);
     prepared.firings.offsets.push_back(core::nsToSeconds(time - prepared.first));
   }
+  // time_offset: every time later by the same amount (the offsets from `first` stay).
+  prepared.first += time_offset_;
+  prepared.last += time_offset_;
+  if (prepared.first < 0)
+    throw core::InvalidInput("time_offset", "puts the sweep before the start of ROS time");
   return prepared;
 }
 

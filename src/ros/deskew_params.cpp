@@ -28,8 +28,14 @@ const ParamSpec kSpecs[] = {
      "time every point is re-expressed at; outputs are stamped with it"},
     {"stamp_at", "string", "start", "", kNoBound, kNoBound, false, "start|end", false, true,
      "which beam header.stamp refers to"},
+    {"time_offset", "double", "0.0", "s", -10.0, 10.0, false, "", false, true,
+     "added to header.stamp (before stamp_at): a fixed latency; scans and clouds; deskew_calibrate finds it"},
+    {"beam_order", "string", "as_message", "", kNoBound, kNoBound, false, "as_message|reversed", false, true,
+     "scans: the beams' order in time is their index order, or its reverse"},
     {"scan_period", "double", "0.0", "s", 0.0, 60.0, false, "", false, true,
      "revolution time when time_increment and scan_time are 0; 0 = none"},
+    {"use_scan_period", "bool", "false", "", kNoBound, kNoBound, false, "", false, true,
+     "scans: beam spacing from scan_period even when the message gives time_increment or scan_time"},
     {"max_sweep_duration", "double", "1.0", "s", 0.0, 60.0, true, "", false, false,
      "longer sweeps are malformed"},
     {"time_field", "string", "", "", kNoBound, kNoBound, false, "", false, false,
@@ -195,7 +201,13 @@ DeskewParams DeskewParams::load(const ParamSource& source, const DeskewParams& b
     checkChoice("stamp_at", text);
     params.timing.stamp_at = core::parseStampAt(text);
   }
+  source.get("time_offset", params.timing.time_offset);
+  if (source.get("beam_order", text)) {
+    checkChoice("beam_order", text);
+    params.timing.beam_order = core::parseBeamOrder(text);
+  }
   source.get("scan_period", params.timing.scan_period);
+  source.get("use_scan_period", params.timing.use_scan_period);
   source.get("max_sweep_duration", params.timing.max_sweep_duration);
   source.get("time_field", params.cloud_time.field);
   if (source.get("time_unit", text)) {
@@ -271,6 +283,7 @@ void DeskewParams::validate() const {
   if (fixed_frame == base_frame)
     throw core::InvalidInput("base_frame", "must differ from fixed_frame");
   checkNumber("scan_period", timing.scan_period);
+  checkNumber("time_offset", timing.time_offset);
   checkNumber("max_sweep_duration", timing.max_sweep_duration);
   if (!exact && deskew.knot_interval == 0.0)
     throw core::InvalidInput("knot_interval", "must be > 0; set exact: true for per-beam lookups");

@@ -2,6 +2,8 @@
 
 #include <cstdint>
 #include <cstdlib>
+#include <fstream>
+#include <stdexcept>
 
 #include "lidar_deskew/core/types.h"
 
@@ -50,6 +52,55 @@ bool TextParams::get(const std::string& name, bool& value) const {
     throw core::InvalidInput(name, "must be true or false, got '" + text + "'");
   }
   return true;
+}
+
+std::map<std::string, std::string> readParamFile(const std::string& path) {
+  std::ifstream in(path);
+  if (!in)
+    throw std::runtime_error(path + ": cannot read the parameter file");
+  std::map<std::string, std::string> values;
+  std::string line;
+  for (int number = 1; std::getline(in, line); ++number) {
+    const auto fail = [&](const std::string& why) {
+      throw std::runtime_error(path + ":" + std::to_string(number) + ": " + why + ": '" + line + "'");
+    };
+    const auto trim = [](std::string text) {
+      const std::size_t begin = text.find_first_not_of(" \t\r");
+      const std::size_t end = text.find_last_not_of(" \t\r");
+      return begin == std::string::npos ? std::string() : text.substr(begin, end - begin + 1);
+    };
+    const std::string text = trim(line);
+    if (text.empty() || text[0] == '#' || text == "---")
+      continue;
+    if (line[0] == ' ' || line[0] == '\t' || text[0] == '-')
+      fail("only flat 'name: value' lines are understood (no nesting, no lists)");
+    const std::size_t colon = text.find(':');
+    if (colon == std::string::npos || colon == 0)
+      fail("expected 'name: value'");
+    const std::string name = trim(text.substr(0, colon));
+    std::string value = trim(text.substr(colon + 1));
+    if (!value.empty() && (value[0] == '"' || value[0] == '\'')) {
+      const std::size_t close = value.find(value[0], 1);
+      if (close == std::string::npos)
+        fail("unterminated quote");
+      const std::string rest = trim(value.substr(close + 1));
+      if (!rest.empty() && rest[0] != '#')
+        fail("text after the quoted value");
+      value = value.substr(1, close - 1);
+    } else {
+      const std::size_t comment = value.find(" #");
+      value = trim(value.substr(0, comment));
+      if (value.empty() || value[0] == '{' || value[0] == '[' || value[0] == '|' || value[0] == '>')
+        fail("only flat 'name: value' lines are understood (no nesting, no lists)");
+      if (value == "True" || value == "TRUE")
+        value = "true";
+      else if (value == "False" || value == "FALSE")
+        value = "false";
+    }
+    if (!values.emplace(name, value).second)
+      fail("'" + name + "' is given twice");
+  }
+  return values;
 }
 
 }  // namespace lidar_deskew::ros_adapter

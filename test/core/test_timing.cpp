@@ -152,5 +152,65 @@ TEST(Timing, ParseNamesAndConfigValidation) {
   EXPECT_THROW(config.validate(), InvalidInput);
 }
 
+TEST(Timing, TimeOffsetMovesEveryBeamByItsValue) {
+  const PlanarScan scan = makeScan(360, static_cast<float>(2 * M_PI / 360), 0.2f / 360, 0.2f);
+  TimingConfig config;
+  config.time_offset = -0.0375;
+  const BeamTiming shifted = resolveTiming(scan, config);
+  const BeamTiming plain = resolveTiming(scan, TimingConfig());
+  for (std::size_t i : {0u, 100u, 359u})
+    EXPECT_EQ(shifted.beamTime(i), plain.beamTime(i) - 37'500'000) << i;
+  // Applied before stamp_at: "stamped at the end" equals an offset of minus the sweep.
+  TimingConfig at_end;
+  at_end.stamp_at = StampAt::kEnd;
+  TimingConfig as_offset;
+  as_offset.time_offset = -359 * static_cast<double>(scan.time_increment);
+  EXPECT_NEAR(static_cast<double>(resolveTiming(scan, at_end).first_beam_time -
+                                  resolveTiming(scan, as_offset).first_beam_time),
+              0.0, 1.0);
+}
+
+TEST(Timing, ReversedBeamOrderPutsTheLastIndexFirstInTime) {
+  const PlanarScan scan = makeScan(360, static_cast<float>(2 * M_PI / 360), 0.2f / 360, 0.2f);
+  TimingConfig config;
+  config.beam_order = BeamOrder::kReversed;
+  const BeamTiming timing = resolveTiming(scan, config);
+  const double step_ns = static_cast<double>(scan.time_increment) * 1e9;
+  // The stamp is still the earliest beam's time: now index 359's.
+  EXPECT_EQ(timing.beamTime(359), kStamp);
+  EXPECT_NEAR(static_cast<double>(timing.beamTime(0) - kStamp), 359 * step_ns, 2.0);
+  EXPECT_NEAR(static_cast<double>(timing.beamTime(100) - kStamp), 259 * step_ns, 2.0);
+  config.stamp_at = StampAt::kEnd;  // stamp = the latest beam = index 0
+  EXPECT_EQ(resolveTiming(scan, config).beamTime(0), kStamp);
+  EXPECT_EQ(parseBeamOrder("reversed"), BeamOrder::kReversed);
+  EXPECT_EQ(toString(parseBeamOrder("as_message")), "as_message");
+  EXPECT_THROW(parseBeamOrder("backwards"), InvalidInput);
+}
+
+TEST(Timing, UseScanPeriodOverridesTheMessagesSpacing) {
+  // time_increment in the wrong unit (ms for s) and scan_time wrong too.
+  const PlanarScan scan = makeScan(360, static_cast<float>(2 * M_PI / 360), 0.2f / 360 * 1000, 0.5f);
+  TimingConfig config;
+  config.scan_period = 0.2;
+  config.use_scan_period = true;
+  const BeamTiming timing = resolveTiming(scan, config);
+  EXPECT_EQ(timing.source, TimingSource::kScanPeriodSet);
+  EXPECT_NEAR(timing.beam_period, 0.2 / 360, 1e-10);  // the float angle increment
+  EXPECT_NEAR(nsToSeconds(timing.latestBeamTime() - timing.earliestBeamTime()), 359 * 0.2 / 360, 1e-8);
+  // Without it the message's ms value makes an absurd sweep: refused.
+  EXPECT_THROW(resolveTiming(scan, TimingConfig()), InvalidInput);
+  TimingConfig without_period;
+  without_period.use_scan_period = true;
+  try {
+    without_period.validate();
+    ADD_FAILURE() << "use_scan_period without scan_period accepted";
+  } catch (const InvalidInput& error) {
+    EXPECT_EQ(error.field(), "use_scan_period");
+  }
+  TimingConfig far;
+  far.time_offset = 61.0;
+  EXPECT_THROW(far.validate(), InvalidInput);
+}
+
 }  // namespace
 }  // namespace lidar_deskew::core

@@ -63,6 +63,10 @@ TEST(Reconfigure, DescriptionMatchesTheParameterTable) {
       EXPECT_EQ(value, std::stoi(spec.default_value));
       EXPECT_EQ(low, spec.min);
       EXPECT_EQ(high, spec.max);
+    } else if (type == "bool") {
+      bool value = true;
+      ASSERT_TRUE(dflt.get(spec.name, value));
+      EXPECT_EQ(value, std::string(spec.default_value) == "true");
     } else {
       ASSERT_EQ(type, "string");
       std::string value;

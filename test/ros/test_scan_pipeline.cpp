@@ -269,9 +269,11 @@ TEST(ScanPipeline, ReconfigureTakesTheLiveParametersAndRefusesTheRest) {
       other = type == "int" ? std::to_string(std::stoi(spec.default_value) + 1)
                             : std::to_string(std::stod(spec.default_value) + 1e-3 * (spec.max - spec.min));
     }
-    const ros_adapter::DeskewParams next = ros_adapter::DeskewParams::load(
-        ros_adapter::TextParams(std::map<std::string, std::string>{{spec.name, other}}),
-        run.pipeline.params());
+    std::map<std::string, std::string> given{{spec.name, other}};
+    if (spec.name == std::string("use_scan_period"))
+      given["scan_period"] = "0.1";  // which it needs
+    const ros_adapter::DeskewParams next =
+        ros_adapter::DeskewParams::load(ros_adapter::TextParams(given), run.pipeline.params());
     if (spec.reconfigurable) {
       EXPECT_NO_THROW(run.pipeline.reconfigure(next));
     } else {

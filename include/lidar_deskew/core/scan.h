@@ -29,6 +29,10 @@ struct PlanarScan {
 /// Which beam `header.stamp` refers to. ROS convention: the first beam (start).
 enum class StampAt { kStart, kEnd };
 
+/// The beams' order in time: as their index says (the message's time_increment sign), or the reverse
+/// (drivers that fill the ranges array against the spin, turtlebot3 #633).
+enum class BeamOrder { kAsMessage, kReversed };
+
 /// The time every output point is re-expressed at. Start = the first beam's time.
 enum class Reference { kStart, kMiddle, kEnd };
 
@@ -36,21 +40,33 @@ enum class Reference { kStart, kMiddle, kEnd };
 StampAt parseStampAt(const std::string& text);
 /// Parses "start" | "middle" | "end". Throws InvalidInput("reference") otherwise.
 Reference parseReference(const std::string& text);
+/// Parses "as_message" | "reversed". Throws InvalidInput("beam_order") otherwise.
+BeamOrder parseBeamOrder(const std::string& text);
 std::string toString(StampAt value);
+std::string toString(BeamOrder value);
 std::string toString(Reference value);
 
 /// How the per-beam times of a scan are derived.
 struct TimingConfig {
   /// `kEnd` for drivers that stamp the scan with its last beam's time.
   StampAt stamp_at = StampAt::kStart;
-  /// [s] one sensor revolution, used only when both time_increment and scan_time are 0.
-  /// 0 = no fallback: such scans are rejected.
+  /// [s] added to header.stamp before stamp_at applies: the first beam's true time is stamp +
+  /// time_offset (stamp_at start). A fixed latency, or "stamped at the end" as -(sweep duration).
+  double time_offset = 0.0;
+  /// kReversed: beam i is measured where the message puts beam n-1-i in time (same stamp rule: the
+  /// stamp is the earliest beam's time with stamp_at start).
+  BeamOrder beam_order = BeamOrder::kAsMessage;
+  /// [s] one sensor revolution, used when both time_increment and scan_time are 0, or always when
+  /// use_scan_period is set. 0 = no fallback: such scans are rejected.
   double scan_period = 0.0;
+  /// Beam spacing from scan_period even when the message gives time_increment or scan_time (they are
+  /// wrong: another unit, another sensor mode). Needs scan_period > 0.
+  bool use_scan_period = false;
   /// [s] sweeps longer than this (first to last beam) are rejected as absurd; at most 60 s.
   double max_sweep_duration = 1.0;
 
   /// Throws InvalidInput naming the bad field (scan_period < 0 or not finite, max_sweep_duration not
-  /// in (0, 60] s).
+  /// in (0, 60] s, time_offset not finite or beyond +-60 s, use_scan_period without scan_period).
   void validate() const;
 };
 
@@ -59,6 +75,7 @@ enum class TimingSource {
   kTimeIncrement,  ///< the message's own time_increment
   kScanTime,       ///< time_increment was 0: scan_time * |angle_increment| / 2pi
   kScanPeriod,     ///< time_increment and scan_time were 0: configured scan_period, same formula
+  kScanPeriodSet,  ///< use_scan_period: scan_period whatever the message says (configured, no fallback)
 };
 
 /// The resolved per-beam times of one scan: beam i is measured at first_beam_time + i * beam_period.
@@ -89,8 +106,10 @@ void validateScan(const PlanarScan& scan);
 /// Resolves the per-beam times of a validated scan (docs/DESIGN.md §4). With time_increment = 0, a rotating
 /// sensor turns 2pi per scan_time, so beams are scan_time * |angle_increment| / 2pi apart (this is
 /// scan_time / beams for a 360 deg sensor, and stays right for a 270 deg one); else the same with
-/// config.scan_period. Throws InvalidInput("time_increment") when no fallback applies, or when the
-/// sweep lasts longer than config.max_sweep_duration.
+/// config.scan_period (always, with use_scan_period). beam_order kReversed negates the spacing; the stamp
+/// plus time_offset is then placed by stamp_at on the earliest (start) or latest (end) beam. Throws
+/// InvalidInput("time_increment") when no fallback applies, or when the sweep lasts longer than
+/// config.max_sweep_duration.
 BeamTiming resolveTiming(const PlanarScan& scan, const TimingConfig& config);
 
 /// Which ranges of a scan are returns: finite, above 0 and within [range_min, range_max]. Two

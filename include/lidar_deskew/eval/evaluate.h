@@ -7,6 +7,7 @@
 
 #include "lidar_deskew/core/deskew.h"
 #include "lidar_deskew/core/rebin.h"
+#include "lidar_deskew/core/scan.h"
 #include "lidar_deskew/sim/sim.h"
 
 namespace lidar_deskew::eval {
@@ -19,6 +20,7 @@ struct EvaluateOptions {
   std::string fixed_frame = "odom";
   std::string base_frame = "base_link";
   core::DeskewConfig deskew;  ///< reference start (what laser_geometry gives), knots every 5 ms
+  core::TimingConfig timing;  ///< the scans' timing (time_offset, beam_order, ...): ROS's by default
   core::RebinConfig rebin;
   /// When not empty: a CSV of one scan (index figure_scan) for the figures: walls, trajectory, raw,
   /// corrected and laser_geometry points, all in the laser frame at that scan's reference time.

@@ -85,6 +85,7 @@ class CloudProcessor {
 
   DeskewParams params_;
   CloudTimeConfig time_config_;
+  core::TimeNs time_offset_;  ///< [ns] the time_offset parameter, added to every point's time
   core::ScanDeskewer deskewer_;
   std::vector<Eigen::Vector3d> corrected_;
 };

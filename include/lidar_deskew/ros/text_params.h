@@ -21,4 +21,10 @@ class TextParams final : public ParamSource {
   std::map<std::string, std::string> values_;
 };
 
+/// Reads a parameter file as `rosparam load` would for our flat parameters: one `name: value` per
+/// line, `#` comments, blank lines, values plain or in single or double quotes. Throws
+/// std::runtime_error naming the file and line for anything else (nesting, lists, a line without a
+/// name, a name given twice, an unreadable file).
+std::map<std::string, std::string> readParamFile(const std::string& path);
+
 }  // namespace lidar_deskew::ros_adapter

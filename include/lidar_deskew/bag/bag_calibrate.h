@@ -1,0 +1,42 @@
+// deskew_calibrate: a planar LIDAR's timing (time_offset, beam_order, period) estimated from a
+// recording in which the robot turns (docs/CALIBRATION.md), written as a parameter file the node
+// (`params:=FILE`) and deskew_bag (`--params FILE`) read.
+#pragma once
+
+#include <string>
+
+#include "lidar_deskew/core/timing_fit.h"
+#include "lidar_deskew/ros/deskew_params.h"
+
+namespace lidar_deskew::bag {
+
+struct CalibrateOptions {
+  std::string input;       ///< the bag
+  std::string scan_topic;  ///< empty: the bag's only LaserScan topic
+  /// fixed_frame, base_frame (the timing parameters are what is estimated; the rest is unused)
+  ros_adapter::DeskewParams params;
+  core::TimingFitConfig fit;
+};
+
+struct Calibration {
+  std::string scan_topic;
+  std::string frame;  ///< the scans' frame
+  std::size_t beams = 0;
+  double stamp_period = 0.0;        ///< [s] from the stamps
+  double stamp_period_sigma = 0.0;  ///< [s]
+  double sweep = 0.0;               ///< [s] first to last beam under the estimated period
+  core::TimingEstimate estimate;
+};
+
+/// Reads the scans of the topic and the bag's tf (the live node's rules), and estimates. Throws
+/// std::runtime_error for an unreadable bag, a missing or ambiguous topic, no tf between the frames.
+Calibration calibrateBag(const CalibrateOptions& options);
+
+/// The estimate as a flat parameter file: the timing parameters, each with a comment, and a header
+/// saying what was measured. Throws std::runtime_error when it cannot be written.
+void writeTimingParams(const Calibration& calibration, const std::string& bag, const std::string& path);
+
+/// The estimate for the user, several lines.
+std::string describe(const Calibration& calibration);
+
+}  // namespace lidar_deskew::bag

@@ -1,0 +1,96 @@
+// How well scans of one sensor agree where they overlap, in the fixed frame: a measure of a
+// correction, or of a timing, that needs no ground truth (docs/CALIBRATION.md). ROS-free.
+#pragma once
+
+#include <Eigen/Core>
+
+#include <cstddef>
+#include <cstdint>
+#include <utility>
+#include <vector>
+
+#include "lidar_deskew/core/types.h"
+
+namespace lidar_deskew::core {
+
+/// One scan's returns placed in the fixed frame (the plane of the laser), in beam order, with what
+/// the measure needs to look points up along the scan's own rays.
+class PlacedScan {
+ public:
+  PlacedScan() = default;
+  /// `points` [m] in the fixed frame in beam order; `origin` [m] the laser's position there at `time`;
+  /// `bearing_step` [rad] the beams' angular spacing (> 0).
+  PlacedScan(TimeNs time, const Eigen::Vector2d& origin, double bearing_step,
+             std::vector<Eigen::Vector2d> points);
+
+  TimeNs time() const { return time_; }
+  const Eigen::Vector2d& origin() const { return origin_; }
+  const std::vector<Eigen::Vector2d>& points() const { return points_; }
+  bool empty() const { return points_.empty(); }
+
+  /// The distance [m] from `query` to this scan's contour near the ray from origin() through it:
+  /// among the points whose bearing lies within two bearing steps of the query's, the nearest, and
+  /// from it to the line through its contour neighbours (consecutive points closer than the join
+  /// distance: 0.05 m + 5 x range x bearing step), or to the point itself when it has none. Sets
+  /// `nearest` to the distance to that point. Returns false (no such point) when none lies within
+  /// `radius` [m].
+  bool distanceToContour(const Eigen::Vector2d& query, double radius, double& distance,
+                         double& nearest) const;
+
+ private:
+  std::size_t binOf(const Eigen::Vector2d& point) const;
+
+  TimeNs time_ = 0;
+  Eigen::Vector2d origin_ = Eigen::Vector2d::Zero();
+  double bin_width_ = 1.0;
+  double inverse_bin_width_ = 1.0;
+  std::vector<Eigen::Vector2d> points_;
+  std::vector<std::uint32_t> bin_begin_;  // points of bin b: by_bin_[bin_begin_[b] .. bin_begin_[b+1])
+  std::vector<std::uint32_t> by_bin_;
+};
+
+/// The measure's constants.
+struct ConsistencyConfig {
+  /// [m] a point with no point of the other scan this near along its ray is outside the overlap
+  double overlap_radius = 0.5;
+  /// [m] a point-to-line distance counts at most this much: a robust (truncated) mean
+  double cap = 0.1;
+  /// share of a scan's points that must overlap the other scan for the pair to count
+  double min_overlap = 0.5;
+  /// points of a scan used per pair at most, evenly spaced in beam order
+  std::size_t max_points = 360;
+};
+
+/// The robust distance of `scan` to `other`: the mean over `scan`'s points within the overlap of
+/// min(point-to-line distance, cap) [m]. `overlap` gets the share of the points used that overlap.
+/// Returns NaN when no point overlaps.
+double pairDistance(const PlacedScan& scan, const PlacedScan& other, const ConsistencyConfig& config,
+                    double* overlap = nullptr);
+
+/// Which pairs of scans to compare.
+struct PairSelection {
+  double max_interval = 10.0;  ///< [s] scans farther apart in time are not paired (odometry drifts)
+  double max_baseline = 3.0;   ///< [m] nor are scans taken farther apart than this
+  std::size_t partners = 8;    ///< each scan is paired with at most this many earlier ones, spread in time
+};
+
+/// The overlapping pairs (earlier, later) of `scans` (sorted by time; empty scans are skipped): for
+/// each scan, up to `partners` earlier scans within max_interval and max_baseline, evenly spread over
+/// them, kept when pairDistance finds at least min_overlap of the later scan in the overlap.
+/// `eligible`, when not empty, says per scan whether it may take part.
+std::vector<std::pair<std::size_t, std::size_t>> overlappingPairs(const std::vector<PlacedScan>& scans,
+                                                                  const PairSelection& selection,
+                                                                  const ConsistencyConfig& config,
+                                                                  const std::vector<bool>& eligible = {});
+
+/// A consistency over pairs, as reported: the mean of the pairs' robust distances and its spread.
+struct ConsistencySummary {
+  std::size_t pairs = 0;
+  double mean = 0.0;    ///< [m] over the pairs (each pair's distance counts once)
+  double spread = 0.0;  ///< [m] standard deviation of the pairs' distances
+  double median = 0.0;  ///< [m]
+};
+/// Summarises per-pair distances (NaNs, pairs without overlap, are left out).
+ConsistencySummary summarize(const std::vector<double>& pair_distances);
+
+}  // namespace lidar_deskew::core

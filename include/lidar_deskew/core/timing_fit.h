@@ -1,0 +1,182 @@
+// Finding a planar LIDAR's timing from data (docs/CALIBRATION.md): the timing under which corrected
+// scans agree best where they overlap, while the robot turns. deskew_calibrate and the node's live
+// check use it. ROS-free.
+#pragma once
+
+#include <mrpt/poses/CPose3D.h>
+
+#include <cstddef>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "lidar_deskew/core/consistency.h"
+#include "lidar_deskew/core/deskew.h"
+#include "lidar_deskew/core/motion.h"
+#include "lidar_deskew/core/scan.h"
+
+namespace lidar_deskew::core {
+
+struct TimingFitConfig {
+  ConsistencyConfig consistency{0.5, 0.1, 0.5, 120};  ///< 120 points of a scan per pair: enough, 3x faster
+  PairSelection pairs;
+  /// [rad/s] a scan turns when its base turns at least this fast over the sweep
+  double turning_rate = 0.3;
+  /// scans that must turn for the timing to be told at all
+  std::size_t min_turning_scans = 10;
+  /// [s] the offset estimate's resolution: the fine search's step
+  double resolution = 0.0001;
+  /// [s] an estimate this close to "as the message says" (or to "stamped at the end") is snapped to it
+  double snap = 0.0005;
+  /// largest one-standard-deviation uncertainty of the offset, as a share of the sweep period, for an
+  /// estimate to be trusted (otherwise: too little turning)
+  double max_uncertainty_share = 0.05;
+  std::size_t resamples = 200;  ///< bootstrap resamples for the uncertainties
+  unsigned seed = 1;
+};
+
+/// One scan's turn and where it was taken: decides which scans and pairs can tell a timing.
+struct ScanMotion {
+  double turn_rate = 0.0;  ///< [rad/s] yaw change over the sweep / its duration
+  double speed = 0.0;      ///< [m/s]
+};
+
+/// The scans of one sensor, the laser's mount and the base's motion, and the consistency of the
+/// corrected scans under any timing. Pairs are chosen once, under the message's own timing, among
+/// scans in which the base moves, so that every timing is scored on the same pairs.
+class TimingFit {
+ public:
+  /// Keeps the scans that `motion` covers a sweep period either side of (they may be shifted that
+  /// far). `nominal_period` [s] one revolution; 0 = from the stamps (the mean interval between
+  /// consecutive scans, of those within 20 % of the median). Throws InvalidInput when no scan is left.
+  TimingFit(std::vector<PlanarScan> scans, const mrpt::poses::CPose3D& mount, const MotionSource& motion,
+            double nominal_period, const TimingFitConfig& config);
+
+  std::size_t scanCount() const { return scans_.size(); }
+  const std::vector<ScanMotion>& motions() const { return motions_; }
+  const std::vector<std::pair<std::size_t, std::size_t>>& pairs() const { return pairs_; }
+  std::size_t turningScans() const;
+  const PlanarScan& scan(std::size_t i) const { return scans_[i]; }
+  double nominalPeriod() const { return nominal_period_; }
+  /// [s] the standard error of the nominal period when it came from the stamps; else 0
+  double nominalPeriodSigma() const { return nominal_sigma_; }
+  /// [s] the median over the scans of messagePeriod()
+  double messagePeriod() const { return message_period_; }
+
+  /// The scans corrected under `timing` and placed in the fixed frame (empty where the timing is not
+  /// valid for a scan or motion does not cover it).
+  std::vector<PlacedScan> place(const TimingConfig& timing) const;
+  /// The raw scans (every beam at the stamp) placed in the fixed frame.
+  std::vector<PlacedScan> placeRaw() const;
+  /// pairDistance() of every pair under `timing` [m]; NaN where a scan could not be placed.
+  std::vector<double> pairDistances(const TimingConfig& timing) const;
+  std::vector<double> pairDistances(const std::vector<PlacedScan>& placed) const;
+  /// Mean of pairDistances (NaN pairs count as the cap).
+  double score(const TimingConfig& timing) const;
+
+ private:
+  PlacedScan placeOne(std::size_t i, const TimingConfig& timing, ScanDeskewer& deskewer,
+                      DeskewedScan& corrected) const;
+
+  std::vector<PlanarScan> scans_;
+  mrpt::poses::CPose3D mount_;
+  const MotionSource& motion_;
+  double nominal_period_;
+  double nominal_sigma_ = 0.0;
+  double message_period_ = 0.0;
+  TimingFitConfig config_;
+  std::vector<ScanMotion> motions_;
+  std::vector<std::pair<std::size_t, std::size_t>> pairs_;
+};
+
+/// What deskew_calibrate reports.
+struct TimingEstimate {
+  bool told = false;  ///< enough turning to tell; otherwise `why` says what is missing
+  std::string why;
+  TimingConfig timing;            ///< the estimate, as parameters (stamp_at start unless snapped to end)
+  double time_offset = 0.0;       ///< [s] first beam - stamp as estimated, before snapping
+  double offset_sigma = 0.0;      ///< [s] one standard deviation (bootstrap over scans)
+  double order_confidence = 0.0;  ///< share of resamples that prefer the estimated beam order
+  double period = 0.0;            ///< [s] the revolution period used
+  double period_sigma = 0.0;      ///< [s] when estimated; 0 when the message's was kept
+  bool period_estimated = false;  ///< the message's period was 0 or disagreed with the data
+  double message_period = 0.0;    ///< [s] the message's own (time_increment, else scan_time); 0 = none
+  bool changed = false;           ///< differs from the message's own timing
+  std::size_t scans = 0, pairs = 0, turning_scans = 0;
+  double fastest_turn = 0.0;  ///< [rad/s]
+  ConsistencySummary raw;     ///< every beam at the stamp
+  ConsistencySummary before;  ///< corrected with the message's timing (as the node does by default)
+  ConsistencySummary after;   ///< corrected with the estimate
+};
+
+/// Estimates time_offset, beam_order and, where the message's is 0 or disagrees with the data, the
+/// period, from `fit`: a coarse search of the offset over +-1.25 periods, a fine one at `resolution`
+/// round the best, per beam order and candidate period (the message's and `fit`'s nominal one);
+/// uncertainties by bootstrap over scans. See docs/CALIBRATION.md.
+TimingEstimate estimateTiming(const TimingFit& fit, const TimingFitConfig& config);
+
+/// The live node's check that its timing fits (docs/CALIBRATION.md): each scan it is given is corrected
+/// under the configured timing and a few alternatives (stamp_at flipped, beam_order flipped, both, the
+/// stamp in the middle of the sweep) and compared with up to `partners` scans given before it within
+/// `history`; pairs in which either scan turns count towards a running consistency per timing. A scan
+/// is thinned to `beams` beams first (the same sweep at a coarser step): a check costs ~0.1 ms.
+struct TimingCheckConfig {
+  ConsistencyConfig consistency{0.5, 0.1, 0.5, 90};  ///< fewer points per pair than offline
+  std::size_t beams = 90;  ///< every k-th beam of a scan, at most this many, is corrected and compared
+  double history = 30.0;   ///< [s] earlier scans kept as partners (checked scans come seconds apart)
+  std::size_t partners = 4;
+  double turning_rate = 0.3;   ///< [rad/s] a pair counts when either scan turns this fast
+  std::size_t min_pairs = 20;  ///< counted pairs before any verdict
+  double margin = 0.9;         ///< "markedly better": a mean below margin x the configured timing's
+  double min_win_share = 0.6;  ///< ... that also wins this share of the pairs
+};
+
+class TimingCheck {
+ public:
+  enum class State {
+    kUnknown,  ///< not enough turning seen yet
+    kFits,     ///< no alternative fits markedly better
+    kBetter,   ///< `better` fits markedly better than the configured timing
+  };
+  struct Verdict {
+    State state = State::kUnknown;
+    std::size_t pairs = 0;    ///< pairs counted
+    double configured = 0.0;  ///< [m] mean pair distance under the configured timing
+    double best = 0.0;        ///< [m] ... under the best alternative
+    std::string best_name;    ///< the best alternative as parameters, e.g. "stamp_at: end"
+    std::string message;
+  };
+
+  explicit TimingCheck(const TimingConfig& configured, const TimingCheckConfig& config = TimingCheckConfig());
+  /// Starts over with `configured` (the parameters changed, or time jumped).
+  void reset(const TimingConfig& configured);
+  /// Adds one scan (corrected under the configured timing already, so `motion` covers it). Scans the
+  /// motion does not cover under some alternative are left out. Returns true when it was used.
+  bool add(const PlanarScan& scan, const mrpt::poses::CPose3D& mount, const MotionSource& motion);
+  Verdict verdict() const;
+  /// Scans used so far (since the last reset).
+  std::size_t scans() const { return scans_; }
+
+ private:
+  struct Entry {
+    TimeNs time;
+    double turn_rate;                // [rad/s]
+    std::vector<PlacedScan> placed;  // per timing, configured first
+  };
+  TimingCheckConfig config_;
+  std::vector<std::pair<std::string, TimingConfig>> timings_;  // configured first; built per scan
+  TimingConfig configured_;
+  std::vector<Entry> history_;
+  std::vector<double> sums_;       // [m] per timing
+  std::vector<std::size_t> wins_;  // pairs in which the timing beat the configured one
+  std::size_t pairs_ = 0;
+  std::size_t scans_ = 0;
+  ScanDeskewer deskewer_;
+  DeskewedScan corrected_;
+};
+
+/// The revolution period the message's fields give for `scan`: |time_increment| x 2pi / |angle
+/// increment|, else scan_time, else 0.
+double messagePeriod(const PlanarScan& scan);
+
+}  // namespace lidar_deskew::core

@@ -1,0 +1,164 @@
+#include "lidar_deskew/bag/bag_calibrate.h"
+
+#include <rosbag/bag.h>
+#include <rosbag/view.h>
+#include <sensor_msgs/LaserScan.h>
+
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <sstream>
+
+#include "lidar_deskew/bag/bag_deskew.h"
+#include "lidar_deskew/eval/recorded_tf.h"
+#include "lidar_deskew/ros/bag_file.h"
+#include "lidar_deskew/ros/conversions.h"
+
+namespace lidar_deskew::bag {
+namespace {
+
+std::string number(double value, int digits) {
+  char text[64];
+  std::snprintf(text, sizeof text, "%.*f", digits, value);
+  return text;
+}
+
+std::string consistency(const core::ConsistencySummary& summary) {
+  if (summary.pairs == 0)
+    return "-";
+  return number(summary.mean * 1e3, 2) + " mm (spread " + number(summary.spread * 1e3, 2) + ", median " +
+         number(summary.median * 1e3, 2) + ", " + std::to_string(summary.pairs) + " pairs)";
+}
+
+}  // namespace
+
+Calibration calibrateBag(const CalibrateOptions& options) {
+  rosbag::Bag bag = ros_adapter::openBagForReading(options.input);
+  Calibration calibration;
+  calibration.scan_topic = options.scan_topic;
+  if (calibration.scan_topic.empty()) {
+    const std::vector<std::string> topics = laserScanTopics(bag);
+    if (topics.size() != 1) {
+      std::string list;
+      for (const std::string& topic : topics)
+        list += " " + topic;
+      throw std::runtime_error(options.input + ": " +
+                               (topics.empty()
+                                    ? std::string("has no LaserScan topic")
+                                    : "has several LaserScan topics; choose one with --scan-topic:" + list));
+    }
+    calibration.scan_topic = topics.front();
+  }
+  std::vector<core::PlanarScan> scans;
+  for (const rosbag::MessageInstance& message :
+       rosbag::View(bag, rosbag::TopicQuery(std::vector<std::string>{calibration.scan_topic}))) {
+    const auto scan = message.instantiate<sensor_msgs::LaserScan>();
+    if (!scan)
+      continue;
+    core::PlanarScan planar = ros_adapter::fromMsg(*scan);
+    try {
+      core::validateScan(planar);
+    } catch (const core::InvalidInput&) {
+      continue;  // malformed: the node drops it too
+    }
+    if (calibration.frame.empty())
+      calibration.frame = ros_adapter::normalizedFrame(scan->header.frame_id);
+    calibration.beams = planar.ranges.size();
+    scans.push_back(std::move(planar));
+  }
+  if (scans.size() < 2) {
+    const std::vector<std::string> topics = laserScanTopics(bag);
+    std::string list;
+    for (const std::string& topic : topics)
+      list += " " + topic;
+    throw std::runtime_error(options.input + ": fewer than 2 valid LaserScans on " + calibration.scan_topic +
+                             " (LaserScan topics:" + list + ")");
+  }
+  const std::unique_ptr<ros_adapter::TfFeed> tf =
+      eval::loadRecordedTf(bag, options.input, options.params.fixed_frame, options.params.base_frame);
+  std::string error;
+  const auto mount = tf->mount(calibration.frame, error);
+  if (!mount)
+    throw std::runtime_error(options.input + ": no laser mount: " + error);
+  const core::TimingFit fit(std::move(scans), *mount, tf->motion(), 0.0, options.fit);
+  calibration.stamp_period = fit.nominalPeriod();
+  calibration.stamp_period_sigma = fit.nominalPeriodSigma();
+  calibration.estimate = core::estimateTiming(fit, options.fit);
+  const core::PlanarScan& first = fit.scan(0);
+  const double period = calibration.estimate.period > 0.0 ? calibration.estimate.period : fit.nominalPeriod();
+  calibration.sweep = period * std::abs(static_cast<double>(first.angle_increment)) / (2.0 * M_PI) *
+                      static_cast<double>(first.ranges.empty() ? 0 : first.ranges.size() - 1);
+  return calibration;
+}
+
+std::string describe(const Calibration& calibration) {
+  const core::TimingEstimate& estimate = calibration.estimate;
+  std::ostringstream text;
+  text << calibration.scan_topic << " (frame " << calibration.frame << ", " << calibration.beams
+       << " beams): " << estimate.scans << " scans, one every " << number(calibration.stamp_period * 1e3, 3)
+       << " ms +- " << number(calibration.stamp_period_sigma * 1e3, 3) << " ms by their stamps\n";
+  text << "  motion: " << estimate.turning_scans << " scans turn at 0.3 rad/s or faster (fastest "
+       << number(estimate.fastest_turn, 2) << " rad/s); " << estimate.pairs
+       << " overlapping pairs with motion\n";
+  if (!estimate.told) {
+    text << "  " << estimate.why << "\n";
+    return text.str();
+  }
+  const core::TimingConfig& timing = estimate.timing;
+  text << "  first beam - stamp: " << number(estimate.time_offset * 1e3, 2) << " ms +- "
+       << number(estimate.offset_sigma * 1e3, 2) << " ms (1 sigma); the sweep lasts "
+       << number(calibration.sweep * 1e3, 2) << " ms";
+  if (timing.stamp_at == core::StampAt::kEnd)
+    text << ": stamped at the end of the sweep";
+  else if (timing.time_offset == 0.0)
+    text << ": stamped at the first beam, as ROS says";
+  text << "\n  beam order: "
+       << (timing.beam_order == core::BeamOrder::kReversed ? "reversed" : "as the message says")
+       << " (held in " << number(estimate.order_confidence * 100.0, 0) << " % of resamples)\n";
+  text << "  period: ";
+  if (estimate.period_estimated) {
+    text << number(estimate.period * 1e3, 3) << " ms +- " << number(estimate.period_sigma * 1e3, 3)
+         << " ms from the stamps; the message's "
+         << (estimate.message_period > 0.0 ? "(" + number(estimate.message_period * 1e3, 3) + " ms) disagrees"
+                                           : "is 0 (time_increment and scan_time)")
+         << "\n";
+  } else {
+    text << number(estimate.message_period * 1e3, 3)
+         << " ms as the message says (stamps: " << number(calibration.stamp_period * 1e3, 3) << " ms)\n";
+  }
+  text << "  consistency (robust point-to-line distance between overlapping scans):\n"
+       << "    raw (every beam at the stamp): " << consistency(estimate.raw) << "\n"
+       << "    corrected, the message's timing: " << consistency(estimate.before) << "\n"
+       << "    corrected, the estimated timing: " << consistency(estimate.after) << "\n";
+  text << (estimate.changed ? "  the message's timing is wrong: use the parameters below\n"
+                            : "  the message's timing fits: nothing to change\n");
+  return text.str();
+}
+
+void writeTimingParams(const Calibration& calibration, const std::string& bag, const std::string& path) {
+  const core::TimingEstimate& estimate = calibration.estimate;
+  const core::TimingConfig& timing = estimate.timing;
+  std::ofstream out(path);
+  if (!out)
+    throw std::runtime_error(path + ": cannot write");
+  out << "# lidar_deskew timing of " << calibration.scan_topic << " (frame " << calibration.frame
+      << "), estimated by deskew_calibrate\n# from " << bag << ": " << estimate.scans << " scans, "
+      << estimate.pairs << " overlapping pairs, " << estimate.turning_scans << " turning.\n"
+      << "# first beam - stamp " << number(estimate.time_offset * 1e3, 2) << " +- "
+      << number(estimate.offset_sigma * 1e3, 2) << " ms; consistency "
+      << number(estimate.before.mean * 1e3, 2) << " mm with the message's timing, "
+      << number(estimate.after.mean * 1e3, 2) << " mm with this.\n"
+      << "# Use: roslaunch lidar_deskew deskew.launch params:=" << path << "\n"
+      << "#      rosrun lidar_deskew deskew_bag IN.bag OUT.bag --params " << path << "\n";
+  out << "stamp_at: " << core::toString(timing.stamp_at) << "\n";
+  out << "time_offset: " << number(timing.time_offset, 5) << "  # [s]\n";
+  out << "beam_order: " << core::toString(timing.beam_order) << "\n";
+  if (estimate.period_estimated) {
+    out << "scan_period: " << number(timing.scan_period, 6) << "  # [s] one revolution\n";
+    out << "use_scan_period: " << (timing.use_scan_period ? "true" : "false") << "\n";
+  }
+  if (!out.flush())
+    throw std::runtime_error(path + ": cannot write");
+}
+
+}  // namespace lidar_deskew::bag

@@ -1,0 +1,100 @@
+// deskew_calibrate: estimates a planar LIDAR's timing from a recording (docs/CALIBRATION.md).
+#include <algorithm>
+#include <cstdio>
+#include <exception>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "lidar_deskew/bag/bag_calibrate.h"
+
+using namespace lidar_deskew;
+
+namespace {
+
+void printUsage(std::FILE* to, const char* program) {
+  std::fprintf(
+      to,
+      "usage: %s IN.bag [--scan-topic T] [--output FILE.yaml] [--fixed-frame F] [--base-frame B]\n"
+      "\n"
+      "Estimates from a recording in which the robot turns the timing of a LaserScan topic: the offset\n"
+      "between header.stamp and the first beam's true time (time_offset, or stamp_at: end), the beams'\n"
+      "order in time (beam_order) and, when time_increment and scan_time are 0 or disagree with the\n"
+      "data, the revolution period (scan_period, use_scan_period). Prints each with its uncertainty\n"
+      "and how well overlapping scans agree before and after; writes the parameters to FILE.yaml, which\n"
+      "`roslaunch lidar_deskew deskew.launch params:=FILE.yaml` and `deskew_bag --params FILE.yaml` read.\n"
+      "With too little turning to tell it says so, writes nothing and exits 3.\n"
+      "  --scan-topic T     the LaserScan topic (default: the bag's only one)\n"
+      "  --output FILE      the parameter file to write (default: print only)\n"
+      "  --fixed-frame F    the frame the base moves in (default odom)\n"
+      "  --base-frame B     the robot's base frame (default base_link)\n"
+      "  --cloud-topic T    refused: clouds carry their own per-point times (set time_offset by hand)\n"
+      "  --help             this text\n",
+      program);
+}
+
+int usageError(const char* program, const std::string& message) {
+  std::fprintf(stderr, "deskew_calibrate: %s\n", message.c_str());
+  printUsage(stderr, program);
+  return 2;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  bag::CalibrateOptions options;
+  std::string output;
+  std::map<std::string, std::string> frames;
+  std::vector<std::string> positional;
+  for (int a = 1; a < argc; ++a) {
+    const std::string arg = argv[a];
+    if (arg == "--help" || arg == "-h") {
+      printUsage(stdout, argv[0]);
+      return 0;
+    }
+    if (arg == "--scan-topic" || arg == "--output" || arg == "--fixed-frame" || arg == "--base-frame" ||
+        arg == "--cloud-topic") {
+      if (a + 1 >= argc)
+        return usageError(argv[0], arg + " needs a value");
+      const std::string value = argv[++a];
+      if (arg == "--scan-topic")
+        options.scan_topic = value;
+      else if (arg == "--output")
+        output = value;
+      else if (arg == "--fixed-frame")
+        frames["fixed_frame"] = value;
+      else if (arg == "--base-frame")
+        frames["base_frame"] = value;
+      else
+        return usageError(argv[0],
+                          "--cloud-topic: calibrating PointCloud2 topics is not supported; a cloud's "
+                          "per-point time field carries its timing (a fixed latency: the time_offset "
+                          "parameter)");
+    } else if (arg.rfind("--", 0) == 0) {
+      return usageError(argv[0], "unknown option " + arg);
+    } else {
+      positional.push_back(arg);
+    }
+  }
+  if (positional.size() != 1)
+    return usageError(argv[0],
+                      "expected one IN.bag, got " + std::to_string(positional.size()) + " file name(s)");
+  options.input = positional[0];
+  try {
+    options.params = ros_adapter::DeskewParams::load(ros_adapter::TextParams(frames));
+    const bag::Calibration calibration = bag::calibrateBag(options);
+    std::printf("deskew_calibrate: %s\n", bag::describe(calibration).c_str());
+    if (!calibration.estimate.told) {
+      std::printf("nothing written\n");
+      return 3;
+    }
+    if (!output.empty()) {
+      bag::writeTimingParams(calibration, options.input, output);
+      std::printf("wrote %s\n", output.c_str());
+    }
+  } catch (const std::exception& error) {
+    std::fprintf(stderr, "deskew_calibrate: %s\n", error.what());
+    return 1;
+  }
+  return 0;
+}

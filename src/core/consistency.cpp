@@ -1,0 +1,186 @@
+#include "lidar_deskew/core/consistency.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace lidar_deskew::core {
+namespace {
+
+constexpr double kTwoPi = 2.0 * M_PI;
+constexpr int kBinReach = 2;  // bins searched on either side of the query's
+
+/// atan2(y, x) in [-pi, pi] to within 1e-5 rad (a bin is at least 1e-4 rad): a polynomial for atan on
+/// [0, 1] and the octant's symmetries; libm's atan2 took a fifth of the measure's time.
+double fastAtan2(double y, double x) {
+  const double ax = std::abs(x), ay = std::abs(y);
+  const double high = std::max(ax, ay);
+  if (high == 0.0)
+    return 0.0;
+  const double a = std::min(ax, ay) / high;
+  const double s = a * a;
+  double r = a * (0.9998660 + s * (-0.3302995 + s * (0.1801410 + s * (-0.0851330 + s * 0.0208351))));
+  if (ay > ax)
+    r = M_PI_2 - r;
+  if (x < 0.0)
+    r = M_PI - r;
+  return y < 0.0 ? -r : r;
+}
+
+}  // namespace
+
+PlacedScan::PlacedScan(TimeNs time, const Eigen::Vector2d& origin, double bearing_step,
+                       std::vector<Eigen::Vector2d> points)
+    : time_(time), origin_(origin), points_(std::move(points)) {
+  if (!(bearing_step > 0.0) || !std::isfinite(bearing_step))
+    throw InvalidInput("bearing_step", "must be a positive angle");
+  // Bins of one bearing step, at most 2^16 round the circle.
+  bin_width_ = std::max(bearing_step, kTwoPi / 65536.0);
+  inverse_bin_width_ = 1.0 / bin_width_;
+  const std::size_t bins = static_cast<std::size_t>(std::ceil(kTwoPi / bin_width_));
+  bin_begin_.assign(bins + 1, 0);
+  std::vector<std::uint32_t> bin_of(points_.size());
+  for (std::size_t i = 0; i < points_.size(); ++i) {
+    bin_of[i] = static_cast<std::uint32_t>(binOf(points_[i]));
+    ++bin_begin_[bin_of[i] + 1];
+  }
+  for (std::size_t b = 0; b < bins; ++b)
+    bin_begin_[b + 1] += bin_begin_[b];
+  by_bin_.resize(points_.size());
+  std::vector<std::uint32_t> fill(bin_begin_.begin(), bin_begin_.end() - 1);
+  for (std::size_t i = 0; i < points_.size(); ++i)
+    by_bin_[fill[bin_of[i]]++] = static_cast<std::uint32_t>(i);
+}
+
+std::size_t PlacedScan::binOf(const Eigen::Vector2d& point) const {
+  const double bearing = fastAtan2(point.y() - origin_.y(), point.x() - origin_.x()) + M_PI;  // [0, 2pi]
+  const std::size_t bins = bin_begin_.size() - 1;
+  const auto bin = static_cast<std::size_t>(std::max(0.0, bearing * inverse_bin_width_));
+  return bin >= bins ? bin - bins : bin;
+}
+
+bool PlacedScan::distanceToContour(const Eigen::Vector2d& query, double radius, double& distance,
+                                   double& nearest) const {
+  if (points_.empty())
+    return false;
+  const auto bins = static_cast<std::ptrdiff_t>(bin_begin_.size() - 1);
+  std::ptrdiff_t bin = static_cast<std::ptrdiff_t>(binOf(query)) - kBinReach;
+  if (bin < 0)
+    bin += bins;
+  double best = radius * radius;
+  std::ptrdiff_t found = -1;
+  for (int step = -kBinReach; step <= kBinReach; ++step, bin = bin + 1 == bins ? 0 : bin + 1) {
+    for (std::uint32_t k = bin_begin_[bin]; k < bin_begin_[bin + 1]; ++k) {
+      const double squared = (points_[by_bin_[k]] - query).squaredNorm();
+      if (squared <= best) {
+        best = squared;
+        found = by_bin_[k];
+      }
+    }
+  }
+  if (found < 0)
+    return false;
+  const Eigen::Vector2d& point = points_[found];
+  nearest = std::sqrt(best);
+  // Contour neighbours: consecutive points closer than the join distance.
+  const double join = 0.05 + 5.0 * (point - origin_).norm() * bin_width_;
+  const auto joined = [&](std::ptrdiff_t other) {
+    return other >= 0 && other < static_cast<std::ptrdiff_t>(points_.size()) &&
+           (points_[other] - point).squaredNorm() <= join * join;
+  };
+  const bool before = joined(found - 1);
+  const bool after = joined(found + 1);
+  if (!before && !after) {
+    distance = nearest;
+    return true;
+  }
+  const Eigen::Vector2d direction =
+      (after ? points_[found + 1] : point) - (before ? points_[found - 1] : point);
+  const double length = direction.norm();
+  if (length <= 0.0) {
+    distance = nearest;
+    return true;
+  }
+  const Eigen::Vector2d offset = query - point;
+  distance = std::abs(direction.x() * offset.y() - direction.y() * offset.x()) / length;
+  return true;
+}
+
+double pairDistance(const PlacedScan& scan, const PlacedScan& other, const ConsistencyConfig& config,
+                    double* overlap) {
+  const std::vector<Eigen::Vector2d>& points = scan.points();
+  const std::size_t stride =
+      std::max<std::size_t>(1, (points.size() + config.max_points - 1) / config.max_points);
+  double sum = 0.0;
+  std::size_t used = 0;
+  std::size_t overlapping = 0;
+  for (std::size_t i = 0; i < points.size(); i += stride, ++used) {
+    double distance, nearest;
+    if (!other.distanceToContour(points[i], config.overlap_radius, distance, nearest))
+      continue;
+    sum += std::min(distance, config.cap);
+    ++overlapping;
+  }
+  if (overlap)
+    *overlap = used ? static_cast<double>(overlapping) / used : 0.0;
+  return overlapping ? sum / overlapping : std::numeric_limits<double>::quiet_NaN();
+}
+
+std::vector<std::pair<std::size_t, std::size_t>> overlappingPairs(const std::vector<PlacedScan>& scans,
+                                                                  const PairSelection& selection,
+                                                                  const ConsistencyConfig& config,
+                                                                  const std::vector<bool>& eligible) {
+  std::vector<std::pair<std::size_t, std::size_t>> pairs;
+  const auto usable = [&](std::size_t i) { return !scans[i].empty() && (eligible.empty() || eligible[i]); };
+  const TimeNs window = secondsToNs(selection.max_interval);
+  std::vector<std::size_t> near;
+  for (std::size_t later = 0; later < scans.size(); ++later) {
+    if (!usable(later))
+      continue;
+    near.clear();
+    for (std::size_t earlier = later; earlier-- > 0;) {
+      if (scans[later].time() - scans[earlier].time() > window)
+        break;
+      if (usable(earlier) &&
+          (scans[later].origin() - scans[earlier].origin()).norm() <= selection.max_baseline)
+        near.push_back(earlier);
+    }
+    if (near.empty())
+      continue;
+    // Evenly spread over the candidates: the nearest in time, the farthest, and between.
+    const std::size_t count = std::min(selection.partners, near.size());
+    for (std::size_t k = 0; k < count; ++k) {
+      const std::size_t earlier = near[count == 1 ? 0 : k * (near.size() - 1) / (count - 1)];
+      double overlap = 0.0;
+      pairDistance(scans[later], scans[earlier], config, &overlap);
+      if (overlap >= config.min_overlap)
+        pairs.emplace_back(earlier, later);
+    }
+  }
+  return pairs;
+}
+
+ConsistencySummary summarize(const std::vector<double>& pair_distances) {
+  std::vector<double> values;
+  for (double value : pair_distances) {
+    if (std::isfinite(value))
+      values.push_back(value);
+  }
+  ConsistencySummary summary;
+  summary.pairs = values.size();
+  if (values.empty())
+    return summary;
+  double sum = 0.0;
+  for (double value : values)
+    sum += value;
+  summary.mean = sum / values.size();
+  double squares = 0.0;
+  for (double value : values)
+    squares += (value - summary.mean) * (value - summary.mean);
+  summary.spread = values.size() > 1 ? std::sqrt(squares / (values.size() - 1)) : 0.0;
+  std::nth_element(values.begin(), values.begin() + values.size() / 2, values.end());
+  summary.median = values[values.size() / 2];
+  return summary;
+}
+
+}  // namespace lidar_deskew::core

@@ -1,0 +1,192 @@
+// The consistency measure (closed-form geometry) and the timing estimate (a simulated drive with known
+// timing, faults injected into the scans' fields): docs/CALIBRATION.md.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+#include "lidar_deskew/core/consistency.h"
+#include "lidar_deskew/core/timing_fit.h"
+#include "lidar_deskew/sim/sim.h"
+
+namespace lidar_deskew::core {
+namespace {
+
+constexpr TimeNs kEpoch = 1'700'000'000'000'000'000;
+
+TEST(Consistency, PointToLineDistanceIsThePerpendicularToTheContour) {
+  // A wall y = 2 seen from the origin at 1 degree steps; a point 3 cm off it, between two returns.
+  std::vector<Eigen::Vector2d> wall;
+  const double step = M_PI / 180.0;
+  for (double bearing = 0.5; bearing < 2.6; bearing += step)
+    wall.emplace_back(2.0 / std::tan(bearing), 2.0);
+  const PlacedScan scan(0, Eigen::Vector2d::Zero(), step, wall);
+  double distance, nearest;
+  ASSERT_TRUE(scan.distanceToContour({0.013, 2.03}, 0.5, distance, nearest));
+  EXPECT_NEAR(distance, 0.03, 1e-9);
+  EXPECT_GT(nearest, 0.03);  // the returns are 35 mm apart there: the nearest is farther than the wall
+  // Nothing within the radius: outside the overlap.
+  EXPECT_FALSE(scan.distanceToContour({0.0, 3.0}, 0.5, distance, nearest));
+  // A lone point (no neighbour within the join distance): the distance to it.
+  const PlacedScan lone(0, Eigen::Vector2d::Zero(), step, {{0.0, 2.0}});
+  ASSERT_TRUE(lone.distanceToContour({0.0, 2.04}, 0.5, distance, nearest));
+  EXPECT_NEAR(distance, 0.04, 1e-12);
+
+  // A whole scan moved 2 cm along the wall's normal: every overlapping point is 2 cm off; moved 0.3
+  // m, every point counts as the cap.
+  std::vector<Eigen::Vector2d> moved = wall, far = wall;
+  for (Eigen::Vector2d& point : moved)
+    point.y() += 0.02;
+  for (Eigen::Vector2d& point : far)
+    point.y() += 0.3;
+  ConsistencyConfig config;
+  double overlap = 0.0;
+  EXPECT_NEAR(pairDistance(PlacedScan(1, Eigen::Vector2d(0.0, 0.02), step, moved), scan, config, &overlap),
+              0.02, 1e-9);
+  EXPECT_EQ(overlap, 1.0);
+  EXPECT_NEAR(pairDistance(PlacedScan(1, Eigen::Vector2d(0.0, 0.3), step, far), scan, config), config.cap,
+              1e-12);
+  const ConsistencySummary summary = summarize({0.01, 0.03, std::nan(""), 0.02});
+  EXPECT_EQ(summary.pairs, 3u);
+  EXPECT_NEAR(summary.mean, 0.02, 1e-15);
+  EXPECT_NEAR(summary.spread, 0.01, 1e-15);
+  EXPECT_NEAR(summary.median, 0.02, 1e-15);
+}
+
+/// A drive whose turn rate changes every second or two, in the hall, and a LIDAR on it.
+struct Drive {
+  sim::LidarModel lidar = sim::LidarModel::ild26tri();
+  sim::Pose2 mount{0.1, 0.0, 0.0};
+  sim::PiecewiseTrajectory trajectory{sim::Pose2{-4.0, 0.0, 0.0},
+                                      {{1.0, 0.0, 0.0, 0.0},
+                                       {1.5, 0.0, 0.0, 1.5},
+                                       {1.0, 0.5, 0.0, 0.0},
+                                       {1.5, 0.3, 0.0, -2.0},
+                                       {1.0, 0.0, 0.0, 0.0},
+                                       {1.5, 0.0, 0.0, 1.0},
+                                       {1.5, 0.5, 0.0, 0.5},
+                                       {1.0, 0.0, 0.0, -1.5},
+                                       {1.0, 0.0, 0.0, 0.0}}};
+  double duration = 10.0;
+};
+
+/// The drive's scans, stamped per the faults, and its motion sampled at 50 Hz (perfect odometry).
+struct Recording {
+  std::vector<PlanarScan> scans;
+  PoseSamples motion;
+  mrpt::poses::CPose3D mount;
+};
+
+/// `stamp_error` [s]: stamp = the earliest beam + it; `reversed`: the beams' time order is the
+/// reverse of their index order; `time_increment_factor`: the message's time_increment x it (scan_time
+/// then 0 when the factor is 0).
+Recording record(const Drive& drive, double stamp_error, bool reversed, double time_increment_factor,
+                 bool noise = true) {
+  Recording recording;
+  const sim::World world = sim::World::hall();
+  sim::LidarModel lidar = drive.lidar;
+  if (reversed)
+    lidar.clockwise = !lidar.clockwise;  // measured against the index order the message will claim
+  std::mt19937 random(7);
+  for (double t = 0.0; t < drive.duration; t += 1.0 / lidar.rate) {
+    sim::SimulatedScan simulated =
+        sim::simulateScan(world, drive.trajectory, drive.mount, lidar, kEpoch, t, noise ? &random : nullptr);
+    PlanarScan& scan = simulated.scan;
+    if (reversed) {
+      // The same rays in the opposite index order: index i now holds the beam measured (n-1-i)th.
+      std::reverse(scan.ranges.begin(), scan.ranges.end());
+      if (!scan.intensities.empty())
+        std::reverse(scan.intensities.begin(), scan.intensities.end());
+      scan.angle_min =
+          static_cast<float>(scan.angle_min + (scan.ranges.size() - 1) * double(scan.angle_increment));
+      scan.angle_increment = -scan.angle_increment;
+      scan.time_increment = std::abs(scan.time_increment);
+    }
+    scan.stamp += secondsToNs(stamp_error);
+    scan.time_increment = static_cast<float>(scan.time_increment * time_increment_factor);
+    if (time_increment_factor == 0.0)
+      scan.scan_time = 0.0f;
+    recording.scans.push_back(scan);
+  }
+  for (double t = -1.0; t < drive.duration + 1.0; t += 0.02) {
+    const sim::Pose2 pose = drive.trajectory.pose(t);
+    recording.motion.add(kEpoch + secondsToNs(t), mrpt::poses::CPose2D(pose.x, pose.y, pose.yaw));
+  }
+  recording.mount = mrpt::poses::CPose3D(drive.mount.x, drive.mount.y, 0.0, drive.mount.yaw, 0.0, 0.0);
+  return recording;
+}
+
+TimingEstimate estimate(const Recording& recording) {
+  const TimingFitConfig config;
+  const TimingFit fit(recording.scans, recording.mount, recording.motion, 0.0, config);
+  return estimateTiming(fit, config);
+}
+
+TEST(TimingFit, RightTimingIsLeftAsItIs) {
+  const Drive drive;
+  const TimingEstimate found = estimate(record(drive, 0.0, false, 1.0));
+  ASSERT_TRUE(found.told) << found.why;
+  EXPECT_LT(std::abs(found.time_offset), 0.0005);
+  EXPECT_FALSE(found.changed);
+  EXPECT_EQ(found.timing.time_offset, 0.0);
+  EXPECT_EQ(found.timing.beam_order, BeamOrder::kAsMessage);
+  EXPECT_FALSE(found.period_estimated);
+  EXPECT_GT(found.order_confidence, 0.95);
+  EXPECT_NEAR(found.after.mean, found.before.mean, 1e-12);
+  EXPECT_LT(found.before.mean, found.raw.mean);
+}
+
+TEST(TimingFit, FindsAnOffsetAndTheEndStamp) {
+  const Drive drive;
+  for (double error : {0.035, -0.02}) {
+    const TimingEstimate found = estimate(record(drive, error, false, 1.0));
+    ASSERT_TRUE(found.told) << found.why;
+    EXPECT_NEAR(found.time_offset, -error, 0.0005) << error;
+    EXPECT_NEAR(found.timing.time_offset, -error, 0.0005) << error;
+    EXPECT_LT(found.offset_sigma, 0.0005);
+    EXPECT_LT(found.after.mean, found.before.mean);
+    EXPECT_TRUE(found.changed);
+  }
+  // Stamped at the end of the sweep: 359 beam periods late.
+  const double sweep = 359.0 / 360.0 / drive.lidar.rate;
+  const TimingEstimate at_end = estimate(record(drive, sweep, false, 1.0));
+  ASSERT_TRUE(at_end.told) << at_end.why;
+  EXPECT_NEAR(at_end.time_offset, -sweep, 0.0005);
+  EXPECT_EQ(at_end.timing.stamp_at, StampAt::kEnd);
+  EXPECT_EQ(at_end.timing.time_offset, 0.0);
+}
+
+TEST(TimingFit, FindsReversedBeamsAndAZeroPeriod) {
+  const Drive drive;
+  const TimingEstimate reversed = estimate(record(drive, 0.0, true, 1.0));
+  ASSERT_TRUE(reversed.told) << reversed.why;
+  EXPECT_EQ(reversed.timing.beam_order, BeamOrder::kReversed);
+  EXPECT_NEAR(reversed.time_offset, 0.0, 0.0005);
+  EXPECT_GT(reversed.order_confidence, 0.95);
+  // time_increment and scan_time 0: the period from the stamps.
+  const TimingEstimate zero = estimate(record(drive, -0.03, false, 0.0));
+  ASSERT_TRUE(zero.told) << zero.why;
+  EXPECT_TRUE(zero.period_estimated);
+  EXPECT_NEAR(zero.period, 1.0 / drive.lidar.rate, 1e-6);
+  EXPECT_NEAR(zero.time_offset, 0.03, 0.0005);
+  EXPECT_FALSE(zero.timing.use_scan_period);  // the message has no period at all: scan_period is used alone
+  // time_increment off by a factor of 2: the stamps' period wins.
+  const TimingEstimate doubled = estimate(record(drive, 0.0, false, 2.0));
+  ASSERT_TRUE(doubled.told) << doubled.why;
+  EXPECT_TRUE(doubled.period_estimated);
+  EXPECT_TRUE(doubled.timing.use_scan_period);
+  EXPECT_NEAR(doubled.timing.scan_period, 1.0 / drive.lidar.rate, 1e-6);
+  EXPECT_NEAR(doubled.time_offset, 0.0, 0.0005);
+}
+
+TEST(TimingFit, TooLittleTurningSaysSoAndHowMuchIsNeeded) {
+  Drive straight;
+  straight.trajectory = sim::PiecewiseTrajectory(sim::Pose2{-6.0, 0.0, 0.0}, {{10.0, 0.8, 0.0, 0.0}});
+  const TimingEstimate found = estimate(record(straight, 0.03, false, 1.0));
+  EXPECT_FALSE(found.told);
+  EXPECT_NE(found.why.find("too little turning"), std::string::npos) << found.why;
+  EXPECT_NE(found.why.find("at least 10 turning scans"), std::string::npos) << found.why;
+}
+
+}  // namespace
+}  // namespace lidar_deskew::core
