@@ -7,6 +7,7 @@
 #include <atomic>
 #include <cmath>
 #include <cstdio>
+#include <ctime>
 #include <type_traits>
 
 #include "lidar_deskew/node/config_params.h"
@@ -68,6 +69,34 @@ double waitClock(const ros::WallTime& wall) {
   return ros::Time::isSimTime() ? ros::Time::now().toSec() : wall.toSec();
 }
 
+/// [s] CPU time of the calling thread.
+double threadCpu() {
+  timespec now{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &now);
+  return static_cast<double>(now.tv_sec) + 1e-9 * static_cast<double>(now.tv_nsec);
+}
+
+/// The share of the node's CPU the live timing check may take.
+constexpr double kTimingCheckBudget = 0.05;
+
+/// Adds the calling thread's CPU time from construction to destruction to a total.
+class CpuSpent {
+ public:
+  explicit CpuSpent(double& total) : total_(total), start_(threadCpu()) {}
+  ~CpuSpent() { total_ += threadCpu() - start_; }
+  CpuSpent(const CpuSpent&) = delete;
+  CpuSpent& operator=(const CpuSpent&) = delete;
+
+ private:
+  double& total_;
+  double start_;
+};
+
+bool sameTiming(const core::TimingConfig& a, const core::TimingConfig& b) {
+  return a.stamp_at == b.stamp_at && a.time_offset == b.time_offset && a.beam_order == b.beam_order &&
+         a.scan_period == b.scan_period && a.use_scan_period == b.use_scan_period;
+}
+
 /// "name value" of each parameter whose value differs between two configs.
 std::string changes(const DeskewConfig& before, const DeskewConfig& after) {
   std::string text;
@@ -88,6 +117,10 @@ std::string changes(const DeskewConfig& before, const DeskewConfig& after) {
       if (*integer == boost::any_cast<int>(was))
         continue;
       value = std::to_string(*integer);
+    } else if (const bool* flag = boost::any_cast<bool>(&now)) {
+      if (*flag == boost::any_cast<bool>(was))
+        continue;
+      value = *flag ? "true" : "false";
     } else if (const std::string* string = boost::any_cast<std::string>(&now)) {
       if (*string == boost::any_cast<std::string>(was))
         continue;
@@ -128,6 +161,11 @@ DeskewNode<Processor>::DeskewNode(ros::NodeHandle nh, ros::NodeHandle private_nh
   diagnostics_ = std::make_unique<diagnostic_updater::Updater>(nh_, private_nh_, name_);
   diagnostics_->setHardwareID("none");
   diagnostics_->add(name_ + ": deskew", this, &DeskewNode::produceDiagnostics);
+  if constexpr (std::is_same_v<Processor, ros_adapter::ScanProcessor>) {
+    timing_check_ = std::make_unique<core::TimingCheck>(params_.timing);
+    pipeline_.setCorrected([this](const typename Processor::Prepared& prepared,
+                                  const mrpt::poses::CPose3D& mount) { checkTiming(prepared, mount); });
+  }
 
   // Absolute names on the node's own handle: in a nodelet, tf then arrives on the nodelet's queue.
   tf_subscriber_ = nh_.subscribe<tf2_msgs::TFMessage>(
@@ -156,9 +194,12 @@ DeskewNode<Processor>::DeskewNode(ros::NodeHandle nh, ros::NodeHandle private_nh
     outputs += (outputs.empty() ? "" : " and ") + publisher.getTopic();
   const std::string timed =
       std::is_same_v<Processor, ros_adapter::ScanProcessor>
-          ? "stamp_at " + core::toString(timing.stamp_at) + ", scan_period " +
-                ros_adapter::formatNumber(timing.scan_period) + " s (when time_increment and scan_time are 0)"
-          : "time field " +
+          ? "stamp_at " + core::toString(timing.stamp_at) + ", time_offset " +
+                ros_adapter::formatNumber(timing.time_offset) + " s, beam_order " +
+                core::toString(timing.beam_order) + ", scan_period " +
+                ros_adapter::formatNumber(timing.scan_period) +
+                (timing.use_scan_period ? " s (always)" : " s (when time_increment and scan_time are 0)")
+          : "time_offset " + ros_adapter::formatNumber(timing.time_offset) + " s, time field " +
                 (params_.cloud_time.field.empty() ? std::string("found alone") : params_.cloud_time.field) +
                 " (unit " + params_.cloud_time.unit + ", base " + params_.cloud_time.base + ")";
   ROS_INFO(
@@ -179,6 +220,8 @@ DeskewNode<Processor>::DeskewNode(ros::NodeHandle nh, ros::NodeHandle private_nh
       const ros_adapter::DeskewParams next =
           ros_adapter::DeskewParams::load(node::ConfigParams(config), params_);
       pipeline_.reconfigure(next);
+      if (timing_check_ && !sameTiming(next.timing, params_.timing))
+        timing_check_->reset(next.timing);
       params_ = next;
       if (!reconfigure_->first) {
         const std::string changed = changes(reconfigure_->taken, config);
@@ -287,6 +330,7 @@ template <class Processor>
 void DeskewNode<Processor>::inputCallback(const typename Message::ConstPtr& message) {
   const ros::WallTime arrival = ros::WallTime::now();
   std::lock_guard<std::mutex> lock(mutex_);
+  const CpuSpent spent(callbacks_cpu_);
   trigger_ = arrival;
   try {
     pipeline_.add(message, waitClock(arrival));
@@ -299,6 +343,7 @@ template <class Processor>
 void DeskewNode<Processor>::tfCallback(const tf2_msgs::TFMessage::ConstPtr& message, bool is_static) {
   const ros::WallTime arrival = ros::WallTime::now();
   std::lock_guard<std::mutex> lock(mutex_);
+  const CpuSpent spent(callbacks_cpu_);
   trigger_ = arrival;
   try {
     pipeline_.addTransforms(message->transforms, is_static, waitClock(arrival));
@@ -312,6 +357,7 @@ void DeskewNode<Processor>::timerCallback(const ros::WallTimerEvent& /*event*/) 
   bool diagnostics_due = false;
   {
     std::lock_guard<std::mutex> lock(mutex_);
+    const CpuSpent spent(callbacks_cpu_);
     const ros::WallTime now = ros::WallTime::now();
     trigger_ = now;
     // After a stall of this process (descheduled, swapped out, stopped), tf that came meanwhile may
@@ -330,6 +376,16 @@ void DeskewNode<Processor>::timerCallback(const ros::WallTimerEvent& /*event*/) 
       ROS_ERROR_THROTTLE(1.0, "%s: error processing %ss: %s", name_.c_str(), Processor::kNoun, error.what());
     }
     diagnostics_due = (now - last_diagnostics_).toSec() >= params_.diagnostics_period;
+    // The timing status appears once the robot has turned enough to tell, and goes when the check
+    // starts over (the timing parameters changed).
+    if (diagnostics_due && timing_check_) {
+      const bool known = timing_check_->verdict().state != core::TimingCheck::State::kUnknown;
+      if (known && !timing_reported_)
+        diagnostics_->add(name_ + ": timing", this, &DeskewNode::produceTimingDiagnostics);
+      else if (!known && timing_reported_)
+        diagnostics_->removeByName(name_ + ": timing");
+      timing_reported_ = known;
+    }
   }
   // On the wall clock: the Updater's own schedule is in ROS time, which stands still with a paused
   // bag and goes back when a bag loops (diagnostics then fell silent).
@@ -386,6 +442,32 @@ void DeskewNode<Processor>::publish(const typename Pipeline::Result& result) {
 }
 
 template <class Processor>
+void DeskewNode<Processor>::checkTiming(const typename Processor::Prepared& prepared,
+                                        const mrpt::poses::CPose3D& mount) {
+  if constexpr (std::is_same_v<Processor, ros_adapter::ScanProcessor>) {
+    if (!timing_check_ || check_cpu_ > kTimingCheckBudget * callbacks_cpu_)
+      return;
+    const CpuSpent spent(check_cpu_);
+    timing_check_->add(prepared.scan, mount, pipeline_.tf().motion());
+  }
+}
+
+template <class Processor>
+void DeskewNode<Processor>::produceTimingDiagnostics(diagnostic_updater::DiagnosticStatusWrapper& status) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  const core::TimingCheck::Verdict verdict = timing_check_->verdict();
+  status.summary(
+      verdict.state == core::TimingCheck::State::kBetter ? diagnostic_msgs::DiagnosticStatus::WARN
+                                                         : diagnostic_msgs::DiagnosticStatus::OK,
+      verdict.state == core::TimingCheck::State::kUnknown ? "not turned enough to tell" : verdict.message);
+  status.add("pairs while turning", verdict.pairs);
+  status.add("configured timing [mm]", 1e3 * verdict.configured);
+  status.add("best alternative", verdict.best_name);
+  status.add("best alternative [mm]", 1e3 * verdict.best);
+  status.add("check CPU share [%]", 100.0 * check_cpu_ / std::max(1e-9, callbacks_cpu_));
+}
+
+template <class Processor>
 void DeskewNode<Processor>::produceDiagnostics(diagnostic_updater::DiagnosticStatusWrapper& status) {
   std::lock_guard<std::mutex> lock(mutex_);
   const Counters counters = countersLocked();
@@ -416,6 +498,11 @@ void DeskewNode<Processor>::produceDiagnostics(diagnostic_updater::DiagnosticSta
   status.add("processing mean [us]", 1e6 * counters.processing_total / done);
   status.add("processing max [us]", 1e6 * counters.processing_max);
   status.add("latency p99 [ms]", 1e3 * latencyP99Locked());
+  if (timing_check_) {
+    status.add("timing check: scans", timing_check_->scans());
+    status.add("timing check: pairs while turning", timing_check_->verdict().pairs);
+    status.add("timing check: CPU share [%]", 100.0 * check_cpu_ / std::max(1e-9, callbacks_cpu_));
+  }
   counters_at_last_diagnostics_ = counters;
   last_diagnostics_ = now;
 }

@@ -355,6 +355,8 @@ void SweepPipeline<Processor>::correct(const Pending& pending, bool extrapolate,
   result.waited = std::max(0.0, now - pending.arrival);
   result.correction = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   publish_(result);
+  if (corrected_ && !extrapolate)
+    corrected_(pending.prepared, *mount);
 }
 
 template <class Processor>

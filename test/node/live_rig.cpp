@@ -5,14 +5,18 @@
 
 #include <algorithm>
 #include <cmath>
+#include <tuple>
 
 #include "lidar_deskew/ros/conversions.h"
 
 namespace lidar_deskew::test {
 
 LiveRig::LiveRig(const sim::LidarModel& lidar, const std::string& ns)
+    : LiveRig(lidar, ns, {{1.0, 6.0, 0.0, 5.0}}) {}  // an arc for ever (the last piece goes on)
+
+LiveRig::LiveRig(const sim::LidarModel& lidar, const std::string& ns, std::vector<sim::MotionPiece> pieces)
     : world(sim::World::demoRoom()),
-      trajectory({-2.0, -1.0, 0.3}, 6.0, 5.0),
+      trajectory({-2.0, -1.0, 0.3}, std::move(pieces)),
       mount{0.25, 0.05, 0.1},
       model(lidar),
       nh_(ns),
@@ -43,10 +47,22 @@ void LiveRig::subscribeOutputs() {
           if (status.name.find(diagnostics_name_) == std::string::npos)
             continue;
           ++diagnostics_received_;
+          statuses_[status.name] = {status.level, status.message};
           for (const auto& value : status.values)
             diagnostics_[value.key] = value.value;
         }
       });
+}
+
+bool LiveRig::status(const std::string& suffix, int& level, std::string& message) const {
+  for (const auto& [name, status] : statuses_) {
+    if (name.size() >= suffix.size() &&
+        name.compare(name.size() - suffix.size(), suffix.size(), suffix) == 0) {
+      std::tie(level, message) = status;
+      return true;
+    }
+  }
+  return false;
 }
 
 bool LiveRig::connect() {

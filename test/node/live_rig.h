@@ -22,6 +22,9 @@ class LiveRig {
   /// Advertises /tf, /tf_static (latched) and `scan` in namespace `ns`; t = 0 of the simulation is
   /// ros::Time::now(). With `ns`, only the diagnostics of a deskew named in it are read.
   explicit LiveRig(const sim::LidarModel& lidar = sim::LidarModel::utm30lx360(), const std::string& ns = "");
+  /// The same with the base driving `pieces` (sim::PiecewiseTrajectory) from the usual start instead of
+  /// the arc at 6 m/s and 5 rad/s.
+  LiveRig(const sim::LidarModel& lidar, const std::string& ns, std::vector<sim::MotionPiece> pieces);
 
   /// Publishes `tree` from now on (call before connect()).
   void useTree(const TfTree& tree) { tree_ = tree; }
@@ -66,6 +69,9 @@ class LiveRig {
   /// The newest value of a diagnostics key of the deskew status (empty when none arrived yet).
   std::string diagnostic(const std::string& key) const;
   double diagnosticNumber(const std::string& key) const;
+  /// The newest level and message of the status whose name ends with `suffix` (e.g. ": timing");
+  /// false when none arrived.
+  bool status(const std::string& suffix, int& level, std::string& message) const;
   /// How many statuses of the deskew arrived on /diagnostics so far.
   std::size_t diagnosticsReceived() const { return diagnostics_received_; }
 
@@ -73,7 +79,7 @@ class LiveRig {
   double secondsOf(const ros::Time& stamp) const;
 
   const sim::World world;
-  const sim::ArcTrajectory trajectory;
+  const sim::PiecewiseTrajectory trajectory;
   sim::Pose2 mount;  ///< base_link -> laser, as last published
   const sim::LidarModel model;
   ros::Publisher scan_publisher;
@@ -90,6 +96,7 @@ class LiveRig {
   std::deque<sensor_msgs::LaserScan::ConstPtr> scans_;
   std::deque<sensor_msgs::PointCloud2::ConstPtr> clouds_;
   std::map<std::string, std::string> diagnostics_;
+  std::map<std::string, std::pair<int, std::string>> statuses_;  // by name: level, message
   std::size_t diagnostics_received_ = 0;
 };
 

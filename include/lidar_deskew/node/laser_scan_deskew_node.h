@@ -16,6 +16,7 @@
 #include <string>
 #include <vector>
 
+#include "lidar_deskew/core/timing_fit.h"
 #include "lidar_deskew/ros/deskew_params.h"
 #include "lidar_deskew/ros/scan_pipeline.h"
 
@@ -28,7 +29,10 @@ namespace lidar_deskew::node {
 /// frame, stamped at the reference time. A scan waits, without blocking any
 /// callback, until tf covers its last beam, and is processed from the tf callback that brings it.
 /// The parameters marked reconfigurable (DeskewParams::reconfigurableNames) may change while it runs,
-/// through dynamic_reconfigure (cfg/Deskew.cfg). Thread-safe: callbacks may come from several threads.
+/// through dynamic_reconfigure (cfg/Deskew.cfg). Scans: a live check that the timing fits
+/// (core::TimingCheck) runs on corrected scans while its CPU time stays within 5 % of the node's
+/// callbacks', and reports on /diagnostics ("<name>: timing") once the robot has turned enough.
+/// Thread-safe: callbacks may come from several threads.
 template <class Processor>
 class DeskewNode {
  public:
@@ -75,6 +79,9 @@ class DeskewNode {
   void publish(const typename Pipeline::Result& result);
   void report(ros_adapter::PipelineEvent event, const std::string& text);
   void produceDiagnostics(diagnostic_updater::DiagnosticStatusWrapper& status);
+  void produceTimingDiagnostics(diagnostic_updater::DiagnosticStatusWrapper& status);
+  /// Feeds the timing check with a corrected sweep when its CPU budget allows (scans only).
+  void checkTiming(const typename Processor::Prepared& prepared, const mrpt::poses::CPose3D& mount);
   double latencyP99Locked() const;
   Counters countersLocked() const;  ///< the pipeline's counters with the node's timing
 
@@ -104,6 +111,11 @@ class DeskewNode {
   ros::Subscriber tf_static_subscriber_;
   ros::WallTimer timer_;
   std::unique_ptr<diagnostic_updater::Updater> diagnostics_;
+  // The live timing check (scans only; guarded by mutex_).
+  std::unique_ptr<core::TimingCheck> timing_check_;
+  double callbacks_cpu_ = 0.0;    // [s] thread CPU time in the node's callbacks, the check's included
+  double check_cpu_ = 0.0;        // [s] of it in the timing check
+  bool timing_reported_ = false;  // the timing status is on /diagnostics
   std::unique_ptr<Reconfigure> reconfigure_;
 };
 

@@ -113,6 +113,10 @@ class SweepPipeline {
 
   /// Replaces the receiver of the outputs.
   void setPublish(Publish publish) { publish_ = std::move(publish); }
+  /// Called after each sweep corrected with tf's own motion (not extrapolated), with the sweep as
+  /// prepared and the mount used (the node's live timing check looks at them with tf().motion()).
+  using Corrected = std::function<void(const typename Processor::Prepared&, const mrpt::poses::CPose3D&)>;
+  void setCorrected(Corrected corrected) { corrected_ = std::move(corrected); }
 
   const PipelineCounters& counters() const { return counters_; }
   std::size_t waiting() const { return pending_.size(); }
@@ -141,6 +145,7 @@ class SweepPipeline {
 
   DeskewParams params_;
   Publish publish_;
+  Corrected corrected_;
   Report report_;
   TfFeed tf_;
   Processor processor_;

@@ -1,0 +1,93 @@
+// The node's live timing check (core::TimingCheck, docs/CALIBRATION.md) against a real roscore: the rig
+// drives the base through turns that start and stop and publishes ILD26TRI scans (8 Hz, 360 beams),
+// either as ROS says (stamped at the first beam) or, with ~stamped_at_end, at the last beam. The node
+// runs with the default timing (stamp_at: start). rostest runs this source three times
+// (timing_check_*.test): scans stamped at the end (a WARN naming stamp_at: end), right (OK), and a
+// base that never turns (no timing status at all).
+#include <gtest/gtest.h>
+
+#include <diagnostic_msgs/DiagnosticStatus.h>
+
+#include "live_rig.h"
+
+namespace lidar_deskew::test {
+namespace {
+
+bool flag(const std::string& name) {
+  bool value = false;
+  ros::NodeHandle("~").getParam(name, value);
+  return value;
+}
+
+/// Turns that start and stop, both ways, with some driving; or (turning = false) a slow straight drive.
+std::vector<sim::MotionPiece> drive(bool turning) {
+  if (!turning)
+    return {{1.0, 0.05, 0.0, 0.0}};
+  std::vector<sim::MotionPiece> pieces;
+  for (int k = 0; k < 40; ++k) {
+    pieces.push_back({0.6, 0.0, 0.0, 0.0});
+    pieces.push_back({0.8, 0.0, 0.0, 2.5});
+    pieces.push_back({0.6, 0.0, 0.0, 0.0});
+    pieces.push_back({0.8, 0.0, 0.0, -2.5});
+  }
+  return pieces;
+}
+
+TEST(TimingCheck, ReportsWhetherTheTimingFits) {
+  const bool turning = !flag("still");
+  const bool at_end = flag("stamped_at_end");
+  LiveRig rig(sim::LidarModel::ild26tri(), "", drive(turning));
+  ASSERT_TRUE(rig.connect());
+  const double period = 1.0 / rig.model.rate;
+  const double sweep = period * (rig.model.beams - 1) / rig.model.beams;
+  const auto stamp_at_end = [&](sensor_msgs::LaserScan& scan) { scan.header.stamp += ros::Duration(sweep); };
+  int level = -1;
+  std::string message;
+  const ros::WallTime started = ros::WallTime::now();
+  std::size_t published = 0;
+  // Up to 90 s of driving, as fast as the node keeps up; stop once the verdict is in.
+  for (double t = 0.1; t < 90.0; t += period) {
+    rig.publishTfUntil(t + 2.0 * period + 0.02);  // covers the sweep however the node reads the stamp
+    rig.publishScan(t, at_end ? std::function<void(sensor_msgs::LaserScan&)>(stamp_at_end) : nullptr);
+    ++published;
+    rig.spinFor(0.004);
+    if (turning && rig.status(": timing", level, message) &&
+        (at_end ? level == diagnostic_msgs::DiagnosticStatus::WARN : t > 60.0))
+      break;
+  }
+  rig.spinFor(1.5);  // the last diagnostics
+  std::printf("%zu scans in %.1f s (%s corrected); timing status: %s\n", published,
+              (ros::WallTime::now() - started).toSec(), rig.diagnostic("published").c_str(),
+              rig.status(": timing", level, message) ? message.c_str() : "(none)");
+  if (!turning) {
+    // Nothing to tell from: no timing status at all, while the deskew reports as usual.
+    EXPECT_FALSE(rig.status(": timing", level, message)) << message;
+    EXPECT_GT(rig.diagnosticsReceived(), 0u);
+    return;
+  }
+  ASSERT_TRUE(rig.status(": timing", level, message));
+  if (at_end) {
+    EXPECT_EQ(level, diagnostic_msgs::DiagnosticStatus::WARN) << message;
+    EXPECT_NE(message.find("stamp_at: end"), std::string::npos) << message;
+    EXPECT_EQ(rig.diagnostic("best alternative"), "stamp_at: end");
+  } else {
+    EXPECT_EQ(level, diagnostic_msgs::DiagnosticStatus::OK) << message;
+    EXPECT_NE(message.find("timing fits"), std::string::npos) << message;
+  }
+  EXPECT_GE(rig.diagnosticNumber("pairs while turning"), 20.0);
+  // Within its budget: at most 5 % of the node's own CPU (one check's worth of slack).
+  const double share = rig.diagnosticNumber("check CPU share [%]");
+  std::printf("check CPU share %.2f %% of the node's callbacks\n", share);
+  EXPECT_GT(share, 0.0);
+  EXPECT_LE(share, 6.0);
+}
+
+}  // namespace
+}  // namespace lidar_deskew::test
+
+int main(int argc, char** argv) {
+  testing::InitGoogleTest(&argc, argv);
+  ros::init(argc, argv, "test_timing_check");
+  ros::NodeHandle nh;
+  return RUN_ALL_TESTS();
+}
