@@ -31,7 +31,7 @@ for noise in off on; do
     # the figure shows the scan in the middle of the recording
     rows+=$("$bin/deskew_metrics" "$work/$slug-$noise.bag" "$work/$slug-$noise.truth" --markdown \
       --figure-csv "$work/$slug-$noise.csv" --figure-scan 4)$'\n'
-  done < <("$bin/deskew_simulate" --list)
+  done < <("$bin/deskew_simulate" --list-paper)
   tables+="### Noise $noise"$'\n\n'"$row_header"$'\n'"$rows"$'\n'
 done
 

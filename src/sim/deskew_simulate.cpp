@@ -1,10 +1,12 @@
 // deskew_simulate: writes a simulated recording as a ROS 1 bag, with its ground-truth file: one of the
-// paper's planar experiments (LaserScan), or a multi-line LIDAR sweep by sweep (PointCloud2 in a
-// driver's layout).
+// planar experiments (LaserScan: the paper's, or the "turns" drives for timing calibration, optionally
+// with the driver's timing faults), or a multi-line LIDAR sweep by sweep (PointCloud2 in a driver's
+// layout).
 //
-//   deskew_simulate --list | --list-clouds | --list-conventions
+//   deskew_simulate --list | --list-paper | --list-calibration | --list-clouds | --list-conventions
 //   deskew_simulate --scenario UTM-30LX/high/arc --bag out.bag --truth out.truth [--noise] [--seed N]
-//                   [--tf-rate HZ] [--clockwise] [--duration S]
+//                   [--tf-rate HZ] [--tf-margin S] [--clockwise] [--duration S] [--stamp-error S |
+//                   --stamp-at-end] [--reversed] [--time-increment-factor F] [--zero-scan-time]
 //   deskew_simulate --cloud-scenario VLP16/rough/arc --convention velodyne_first --bag out.bag
 //                   --truth out.truth [--noise] [--seed N] [--tf-rate HZ] [--duration S] [--latency S]
 #include <cstdio>
@@ -12,6 +14,7 @@
 #include <cstring>
 #include <exception>
 #include <string>
+#include <vector>
 
 #include "lidar_deskew/sim/cloud_bag.h"
 #include "lidar_deskew/sim/sim_bag.h"
@@ -21,14 +24,25 @@ namespace {
 int usage(const char* program) {
   std::fprintf(
       stderr,
-      "usage: %s --list | --list-clouds | --list-conventions\n"
+      "usage: %s --list | --list-paper | --list-calibration | --list-clouds | --list-conventions\n"
       "       %s --scenario NAME --bag OUT.bag --truth OUT.truth [--noise] [--seed N] [--tf-rate HZ]\n"
-      "          [--clockwise] [--duration S]\n"
+      "          [--tf-margin S] [--clockwise] [--duration S] [--stamp-error S | --stamp-at-end]\n"
+      "          [--reversed] [--time-increment-factor F] [--zero-scan-time]\n"
       "       %s --cloud-scenario NAME --convention NAME --bag OUT.bag --truth OUT.truth [--noise]\n"
       "          [--seed N] [--tf-rate HZ] [--duration S] [--latency S]\n"
-      "  --list              the planar scenarios (LaserScan on /scan)\n"
+      "  --list              the planar scenarios (LaserScan on /scan): the paper's, then calibration's\n"
+      "  --list-paper        the paper's 19 (docs/RESULTS.md)\n"
+      "  --list-calibration  the turns drives for timing calibration (SENSOR/normal|high/turns)\n"
       "  --list-clouds       the multi-line scenarios (PointCloud2 on /points, frame lidar)\n"
-      "  --list-conventions  the drivers' cloud layouts for --convention\n",
+      "  --list-conventions  the drivers' cloud layouts for --convention\n"
+      "  --tf-margin S       odometry from S before the first scan to S after the last (default 0.1)\n"
+      "timing faults of the /scan messages (planar scenarios only; recorded in the truth file):\n"
+      "  --stamp-error S     header.stamp = true time of the earliest beam + S (time_offset = -S)\n"
+      "  --stamp-at-end      stamped at the latest beam: S = (beams - 1) * true time_increment\n"
+      "  --reversed          beam i truly measured at t0 + (n - 1 - i) dt, the message claims index\n"
+      "                      order; the stamp refers to the earliest beam, index n - 1\n"
+      "  --time-increment-factor F  time_increment = F * the true one (0: unknown)\n"
+      "  --zero-scan-time    scan_time = 0\n",
       program, program, program);
   return 2;
 }
@@ -38,15 +52,19 @@ int usage(const char* program) {
 int main(int argc, char** argv) {
   using namespace lidar_deskew;
   std::string scenario_name, cloud_scenario_name, convention_name, bag_path, truth_path;
-  bool clockwise = false;
+  bool clockwise = false, stamp_at_end = false, stamp_error_given = false, any_fault = false;
+  bool tf_margin_given = false;
   double duration = 0.0;
   sim::SimBagOptions options;
   sim::CloudBagOptions cloud_options;
   for (int a = 1; a < argc; ++a) {
     const std::string arg = argv[a];
     const bool has_value = a + 1 < argc;
-    if (arg == "--list") {
-      for (const sim::Scenario& scenario : sim::paperScenarios())
+    if (arg == "--list" || arg == "--list-paper" || arg == "--list-calibration") {
+      const std::vector<sim::Scenario> scenarios = arg == "--list"         ? sim::planarScenarios()
+                                                   : arg == "--list-paper" ? sim::paperScenarios()
+                                                                           : sim::calibrationScenarios();
+      for (const sim::Scenario& scenario : scenarios)
         std::printf("%s\n", scenario.name.c_str());
       return 0;
     } else if (arg == "--list-clouds") {
@@ -79,6 +97,21 @@ int main(int argc, char** argv) {
       options.seed = static_cast<unsigned>(std::strtoul(argv[++a], nullptr, 10));
     } else if (arg == "--tf-rate" && has_value) {
       options.tf_rate = std::atof(argv[++a]);
+    } else if (arg == "--tf-margin" && has_value) {
+      options.tf_margin = std::atof(argv[++a]);
+      tf_margin_given = true;
+    } else if (arg == "--stamp-error" && has_value) {
+      options.timing_fault.stamp_error = std::atof(argv[++a]);
+      stamp_error_given = any_fault = true;
+    } else if (arg == "--stamp-at-end") {
+      stamp_at_end = any_fault = true;
+    } else if (arg == "--reversed") {
+      options.timing_fault.reversed = any_fault = true;
+    } else if (arg == "--time-increment-factor" && has_value) {
+      options.timing_fault.time_increment_factor = std::atof(argv[++a]);
+      any_fault = true;
+    } else if (arg == "--zero-scan-time") {
+      options.timing_fault.zero_scan_time = any_fault = true;
     } else {
       return usage(argv[0]);
     }
@@ -86,12 +119,27 @@ int main(int argc, char** argv) {
   const bool cloud = !cloud_scenario_name.empty();
   if (scenario_name.empty() == !cloud || bag_path.empty() || truth_path.empty())
     return usage(argv[0]);
-  if (cloud && (convention_name.empty() || clockwise))
+  if (cloud && (convention_name.empty() || clockwise || tf_margin_given))
     return usage(argv[0]);
   if (!cloud && !convention_name.empty())
     return usage(argv[0]);
   if (!(options.tf_rate > 0.0)) {
     std::fprintf(stderr, "--tf-rate must be > 0 Hz\n");
+    return 2;
+  }
+  if (!(options.tf_margin >= 0.0)) {
+    std::fprintf(stderr, "--tf-margin must be >= 0 s\n");
+    return 2;
+  }
+  if (cloud && any_fault) {
+    std::fprintf(stderr,
+                 "deskew_simulate: timing faults (--stamp-error, --stamp-at-end, --reversed, "
+                 "--time-increment-factor, --zero-scan-time) are for planar scenarios (--scenario), not "
+                 "--cloud-scenario\n");
+    return 2;
+  }
+  if (stamp_at_end && stamp_error_given) {
+    std::fprintf(stderr, "deskew_simulate: give --stamp-error or --stamp-at-end, not both\n");
     return 2;
   }
   try {
@@ -110,6 +158,9 @@ int main(int argc, char** argv) {
     }
     if (duration > 0.0) {  // longer recordings (benchmarks); the last motion piece goes on
       scenario.duration = duration;
+    }
+    if (stamp_at_end) {
+      options.timing_fault.stamp_error = sim::TimingFault::stampedAtEnd(scenario.lidar).stamp_error;
     }
     sim::writeSimulationBag(scenario, options, bag_path, truth_path);
   } catch (const std::exception& error) {

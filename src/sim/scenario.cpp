@@ -1,11 +1,20 @@
 #include "lidar_deskew/sim/scenario.h"
 
+#include <cmath>
 #include <stdexcept>
 
 #include "truth_text.h"
 
 namespace lidar_deskew::sim {
 namespace {
+
+/// A "0" or "1" field into `flag`: whether it was one of them.
+bool readFlag(std::istream& fields, bool* flag) {
+  int value = -1;
+  fields >> value;
+  *flag = value == 1;
+  return value == 0 || value == 1;
+}
 
 Scenario makeScenario(const LidarModel& lidar, const std::string& speed, const std::string& motion) {
   Scenario scenario;
@@ -27,6 +36,46 @@ Scenario makeScenario(const LidarModel& lidar, const std::string& speed, const s
     scenario.pieces = {{scenario.duration, 0.0, 0.0, w}};
   } else {
     scenario.pieces = {{scenario.duration, v, 0.0, w}};
+  }
+  return scenario;
+}
+
+/// The "turns" drives: (duration, speed, acceleration, yaw rate) pieces of 1 to 2 s, each a multiple
+/// of 0.1 s so that the changes fall on 50 Hz odometry samples (tf interpolates linearly between
+/// samples and could not follow a change between them). The turn rate changes at every piece; both
+/// end standing still, so the last piece going on past the end keeps the robot where it is.
+std::vector<MotionPiece> turnsPieces(bool high) {
+  if (!high) {  // 14.7 s, up to 1 m/s and 2 rad/s
+    return {{1.0, 0.0, 0.0, 0.0}, {1.0, 0.0, 0.0, 1.5}, {1.0, 0.6, 0.0, 0.0},  {1.5, 0.0, 0.0, -2.0},
+            {1.5, 0.8, 0.0, 1.6}, {1.0, 0.0, 0.0, 0.0}, {2.0, 0.0, 0.0, -1.0}, {1.5, 1.0, 0.0, -2.0},
+            {1.0, 0.0, 0.0, 2.0}, {1.2, 0.5, 0.0, 0.0}, {1.0, 0.3, 0.0, -0.5}, {1.0, 0.0, 0.0, 0.0}};
+  }
+  // 13.5 s, up to 2 m/s and 5 rad/s
+  return {{1.0, 0.0, 0.0, 0.0},  {1.0, 0.0, 0.0, 4.5}, {1.5, 2.0, 0.0, -4.0}, {1.0, 0.0, 0.0, -5.0},
+          {1.0, 0.0, 0.0, 0.0},  {1.0, 1.5, 0.0, 0.5}, {1.0, 0.0, 0.0, 3.0},  {1.5, 2.0, 0.0, 4.0},
+          {1.5, 0.0, 0.0, -4.0}, {1.0, 1.0, 0.0, 0.0}, {1.0, 1.0, 0.0, -2.0}, {1.0, 0.0, 0.0, 0.0}};
+}
+
+Scenario makeTurnsScenario(const LidarModel& lidar, const std::string& speed) {
+  Scenario scenario;
+  scenario.lidar = lidar;
+  scenario.speed = speed;
+  scenario.motion = "turns";
+  scenario.name = lidar.name + "/" + speed + "/turns";
+  const bool high = speed == "high";
+  scenario.pieces = turnsPieces(high);
+  scenario.duration = 0.0;
+  for (const MotionPiece& piece : scenario.pieces)
+    scenario.duration += piece.duration;
+  if (lidar.range_max < 10.0f) {
+    // The LDS-01 reaches 3.5 m: a small room, the laser 32 mm behind the base (TurtleBot3 Burger).
+    scenario.world = World::smallRoom();
+    scenario.mount = {-0.032, 0.0, 0.0};
+    scenario.start = high ? Pose2{-0.8, 0.0, 0.0} : Pose2{-0.3, -0.3, 0.0};
+  } else {
+    // The hall, where the paper's scenarios start; the mount of the paper's speed.
+    scenario.mount = high ? Pose2{0.25, 0.05, 0.1} : Pose2{0.0, 0.0, 0.0};
+    scenario.start = {-10.0, 0.5, 0.0};
   }
   return scenario;
 }
@@ -60,8 +109,25 @@ std::vector<Scenario> paperScenarios() {
   return scenarios;
 }
 
+std::vector<Scenario> calibrationScenarios() {
+  std::vector<Scenario> scenarios;
+  for (const LidarModel& lidar :
+       {LidarModel::ild26tri(), LidarModel::utm30lx360(), LidarModel::utm30lx270(), LidarModel::lds01()}) {
+    for (const std::string speed : {"normal", "high"})
+      scenarios.push_back(makeTurnsScenario(lidar, speed));
+  }
+  return scenarios;
+}
+
+std::vector<Scenario> planarScenarios() {
+  std::vector<Scenario> scenarios = paperScenarios();
+  for (Scenario& scenario : calibrationScenarios())
+    scenarios.push_back(std::move(scenario));
+  return scenarios;
+}
+
 Scenario findScenario(const std::string& name) {
-  return truth_text::findByName(paperScenarios(), name, "scenario");
+  return truth_text::findByName(planarScenarios(), name, "scenario");
 }
 
 Scenario clockwiseVariant(Scenario scenario) {
@@ -74,12 +140,25 @@ Pose2 Truth::laserPose(core::TimeNs time) const {
   return trajectory().pose(core::nsToSeconds(time - epoch)).compose(mount);
 }
 
+core::TimeNs Truth::beamTime(core::TimeNs stamp, std::size_t index, std::size_t beams) const {
+  const std::size_t order = timing_fault.reversed ? beams - 1 - index : index;  // place in time
+  // As simulateScan: the earliest beam's ns time, plus whole beam periods.
+  const core::TimeNs earliest = stamp - core::secondsToNs(timing_fault.stamp_error);
+  return earliest + core::secondsToNs(static_cast<double>(order) * beam_period);
+}
+
 void writeTruth(const Truth& truth, const std::string& path) {
   std::ofstream out = truth_text::create(path, "lidar_deskew simulation truth v1");
   out << "scenario " << truth.scenario << "\n";
   out << "epoch_ns " << truth.epoch << "\n";
   out << "range_sigma " << truth.range_sigma << "\n";
   out << "mount " << truth.mount.x << " " << truth.mount.y << " " << truth.mount.yaw << "\n";
+  out << "time_offset " << truth.timeOffset() << "\n";
+  out << "reversed " << (truth.timing_fault.reversed ? 1 : 0) << "\n";
+  out << "time_increment_factor " << truth.timing_fault.time_increment_factor << "\n";
+  out << "zero_scan_time " << (truth.timing_fault.zero_scan_time ? 1 : 0) << "\n";
+  out << "beam_period " << truth.beam_period << "\n";
+  out << "sweep_period " << truth.sweep_period << "\n";
   truth_text::writeMotion(out, truth.start, truth.pieces);
   for (const Segment& segment : truth.world.segments()) {
     out << "wall " << segment.a.x() << " " << segment.a.y() << " " << segment.b.x() << " " << segment.b.y()
@@ -102,6 +181,22 @@ Truth readTruth(const std::string& path) {
       return static_cast<bool>(fields >> truth.range_sigma);
     if (key == "mount")
       return static_cast<bool>(fields >> truth.mount.x >> truth.mount.y >> truth.mount.yaw);
+    if (key == "time_offset") {
+      double time_offset;
+      const bool ok = static_cast<bool>(fields >> time_offset);
+      truth.timing_fault.stamp_error = 0.0 - time_offset;
+      return ok;
+    }
+    if (key == "reversed")
+      return readFlag(fields, &truth.timing_fault.reversed);
+    if (key == "time_increment_factor")
+      return static_cast<bool>(fields >> truth.timing_fault.time_increment_factor);
+    if (key == "zero_scan_time")
+      return readFlag(fields, &truth.timing_fault.zero_scan_time);
+    if (key == "beam_period")
+      return static_cast<bool>(fields >> truth.beam_period);
+    if (key == "sweep_period")
+      return static_cast<bool>(fields >> truth.sweep_period);
     if (key == "wall") {
       double ax, ay, bx, by;
       const bool ok = static_cast<bool>(fields >> ax >> ay >> bx >> by);

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <stdexcept>
 
 namespace lidar_deskew::sim {
 namespace {
@@ -47,6 +48,25 @@ Eigen::Vector2d Pose2::applyInverse(const Eigen::Vector2d& global) const {
 void World::addPolygon(const std::vector<Eigen::Vector2d>& corners) {
   for (std::size_t i = 0; i < corners.size(); ++i)
     add(corners[i], corners[(i + 1) % corners.size()]);
+}
+
+void World::addOutline(const std::vector<Eigen::Vector2d>& corners) {
+  addPolygon(corners);
+  outline_ = corners;
+}
+
+bool World::insideOutline(const Eigen::Vector2d& point) const {
+  // Even-odd rule: count the outline's edges crossed by a ray from the point towards +x.
+  bool inside = false;
+  for (std::size_t i = 0; i < outline_.size(); ++i) {
+    const Eigen::Vector2d& a = outline_[i];
+    const Eigen::Vector2d& b = outline_[(i + 1) % outline_.size()];
+    if ((a.y() > point.y()) != (b.y() > point.y()) &&
+        point.x() < a.x() + (b.x() - a.x()) * (point.y() - a.y()) / (b.y() - a.y())) {
+      inside = !inside;
+    }
+  }
+  return inside;
 }
 
 std::optional<double> raySegmentRange(const Eigen::Vector2d& origin, const Eigen::Vector2d& direction,
@@ -104,13 +124,26 @@ std::vector<Eigen::Vector2d> World::hallOutline() {
 
 World World::hall() {
   World world;
-  world.addPolygon(hallOutline());
+  world.addOutline(hallOutline());
   // Square pillars along the hall and a wall at 30 deg.
   for (const double x : {-12.0, -4.0, 8.0}) {
     world.addPolygon({{x, -2.8}, {x + 0.5, -2.8}, {x + 0.5, -2.3}, {x, -2.3}});
   }
   world.addPolygon({{-8.0, 2.5}, {-7.6, 2.5}, {-7.6, 2.9}, {-8.0, 2.9}});
   world.add({12.0, 1.0}, {12.0 + 3.0 * std::cos(M_PI / 6), 1.0 + 3.0 * std::sin(M_PI / 6)});
+  return world;
+}
+
+std::vector<Eigen::Vector2d> World::smallRoomOutline() {
+  // Counter-clockwise from the south-west corner; the north-east corner is cut at 45 deg.
+  return {{-2.5, -2.0}, {2.5, -2.0}, {2.5, 1.0}, {1.5, 2.0}, {-2.5, 2.0}};
+}
+
+World World::smallRoom() {
+  World world;
+  world.addOutline(smallRoomOutline());
+  world.addPolygon({{-2.2, 1.0}, {-1.9, 1.0}, {-1.9, 1.3}, {-2.2, 1.3}});
+  world.add({1.2, -2.0}, {2.5, -1.2});
   return world;
 }
 
@@ -190,6 +223,10 @@ float LidarModel::timeIncrement() const {
   return static_cast<float>(std::abs(static_cast<double>(angleIncrement())) / (2.0 * M_PI) / rate);
 }
 
+double LidarModel::sweepDuration() const {
+  return (beams - 1) * static_cast<double>(timeIncrement());
+}
+
 LidarModel LidarModel::utm30lx360() {
   return {"UTM-30LX", 1440, 2.0 * M_PI, 40.0, 0.030, false, 0.1f, 30.0f};
 }
@@ -199,26 +236,51 @@ LidarModel LidarModel::ild26tri() {
 LidarModel LidarModel::utm30lx270() {
   return {"UTM-30LX-270", 1080, 1.5 * M_PI, 40.0, 0.030, false, 0.1f, 30.0f};
 }
+LidarModel LidarModel::lds01() {
+  // ROBOTIS LDS-01 specification (TurtleBot3 e-manual): 300 rpm, 1 deg resolution, 120 to 3500 mm, accuracy
+  // +-15 mm up to 499 mm (+-5 % beyond), precision +-10 mm up to 499 mm (+-3.5 % beyond). One sigma of 15 mm
+  // sits between the short-range figures; the percentage figures are bounds, not a Gaussian sigma. Its driver
+  // (hls_lfcd_lds_driver) publishes a counter-clockwise scan.
+  return {"LDS-01", 360, 2.0 * M_PI, 5.0, 0.015, false, 0.12f, 3.5f};
+}
+
+void TimingFault::validate() const {
+  if (!std::isfinite(stamp_error))
+    throw std::invalid_argument("stamp_error: must be finite");
+  if (!std::isfinite(time_increment_factor) || time_increment_factor < 0.0)
+    throw std::invalid_argument("time_increment_factor: must be finite and >= 0");
+}
+
+TimingFault TimingFault::stampedAtEnd(const LidarModel& model) {
+  TimingFault fault;
+  fault.stamp_error = model.sweepDuration();
+  return fault;
+}
 
 SimulatedScan simulateScan(const World& world, const Trajectory& trajectory, const Pose2& mount,
                            const LidarModel& model, core::TimeNs epoch, double start_time,
-                           std::mt19937* noise) {
+                           std::mt19937* noise, const TimingFault& fault) {
+  fault.validate();
   SimulatedScan result;
   core::PlanarScan& scan = result.scan;
-  scan.stamp = epoch + core::secondsToNs(start_time);
+  const core::TimeNs earliest = epoch + core::secondsToNs(start_time);
+  scan.stamp = earliest + core::secondsToNs(fault.stamp_error);
   scan.angle_min = model.angleMin();
   scan.angle_increment = model.angleIncrement();
   scan.angle_max =
       static_cast<float>(scan.angle_min + (model.beams - 1) * static_cast<double>(scan.angle_increment));
-  scan.time_increment = model.timeIncrement();
-  scan.scan_time = static_cast<float>(1.0 / model.rate);
+  const float beam_period = model.timeIncrement();
+  scan.time_increment = static_cast<float>(fault.time_increment_factor * static_cast<double>(beam_period));
+  scan.scan_time = fault.zero_scan_time ? 0.0f : static_cast<float>(1.0 / model.rate);
   scan.range_min = model.range_min;
   scan.range_max = model.range_max;
   std::normal_distribution<double> range_noise(0.0, model.range_sigma);
-  // Beam times as the scan message implies them (from its float fields), so truth and message agree.
-  const double first_time = core::nsToSeconds(scan.stamp - epoch);
+  // True beam times from the float period and the ns stamp an unfaulted message carries, so that without
+  // a fault truth and message agree exactly.
+  const double first_time = core::nsToSeconds(earliest - epoch);
   for (int i = 0; i < model.beams; ++i) {
-    const double t = first_time + i * static_cast<double>(scan.time_increment);
+    const int order = fault.reversed ? model.beams - 1 - i : i;  // place in time
+    const double t = first_time + order * static_cast<double>(beam_period);
     const double angle = static_cast<double>(scan.angle_min) + i * static_cast<double>(scan.angle_increment);
     const Pose2 laser = trajectory.pose(t).compose(mount);
     const Eigen::Vector2d direction(std::cos(laser.yaw + angle), std::sin(laser.yaw + angle));

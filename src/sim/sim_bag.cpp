@@ -5,8 +5,10 @@
 #include <sensor_msgs/LaserScan.h>
 #include <tf2_msgs/TFMessage.h>
 
+#include <algorithm>
 #include <cmath>
 #include <random>
+#include <stdexcept>
 
 #include "lidar_deskew/ros/conversions.h"
 
@@ -34,22 +36,36 @@ geometry_msgs::TransformStamped stamped(const std::string& parent, const std::st
 
 void writeSimulationBag(const sim::Scenario& scenario, const SimBagOptions& options,
                         const std::string& bag_path, const std::string& truth_path) {
+  const sim::TimingFault& fault = options.timing_fault;
+  fault.validate();
+  if (!(options.tf_margin >= 0.0) || !std::isfinite(options.tf_margin))
+    throw std::invalid_argument("tf_margin: must be finite and >= 0");
   const sim::PiecewiseTrajectory trajectory = scenario.trajectory();
-  const sim::World world = sim::World::hall();
+  const sim::World& world = scenario.world;
   const double scan_period = 1.0 / scenario.lidar.rate;
   const core::TimeNs epoch = options.epoch;
   const auto at = [&](double t) { return epoch + core::secondsToNs(t); };
+  // The beam times a faulted message claims, relative to the true earliest beam: from stamp_error to
+  // stamp_error + claimed sweep. Odometry covers them too, so a tool may read the scans as stamped.
+  const double claimed_sweep = fault.time_increment_factor *
+                               static_cast<double>(scenario.lidar.timeIncrement()) *
+                               (scenario.lidar.beams - 1);
+  const double claimed_before = std::max(0.0, -fault.stamp_error);
+  const double claimed_after = std::max(0.0, fault.stamp_error + claimed_sweep - scan_period);
+
+  // Odometry from tf_margin before the first scan to tf_margin after the last scan's end (as true or
+  // as claimed, whichever is further out), its samples on multiples of 1 / tf_rate since t = 0.
+  const double tf_begin =
+      -std::ceil((options.tf_margin + claimed_before) * options.tf_rate - 1e-9) / options.tf_rate;
+  const double tf_end = scenario.duration + scan_period + claimed_after + options.tf_margin;
 
   rosbag::Bag bag(bag_path, rosbag::bagmode::Write);
 
   tf2_msgs::TFMessage static_transforms;
   static_transforms.transforms.push_back(
-      stamped(options.base_frame, options.laser_frame, at(-0.1), scenario.mount));
-  bag.write("/tf_static", toRosTime(at(-0.1)), static_transforms);
+      stamped(options.base_frame, options.laser_frame, at(tf_begin), scenario.mount));
+  bag.write("/tf_static", toRosTime(at(tf_begin)), static_transforms);
 
-  // Odometry from 0.1 s before the first scan to 0.1 s after the last scan's end.
-  const double tf_begin = -0.1;
-  const double tf_end = scenario.duration + scan_period + 0.1;
   const long tf_samples = std::lround(std::floor((tf_end - tf_begin) * options.tf_rate));
   const auto tfTime = [&](long k) { return tf_begin + static_cast<double>(k) / options.tf_rate; };
   const auto writeOdometry = [&](long k) {
@@ -75,8 +91,9 @@ void writeSimulationBag(const sim::Scenario& scenario, const SimBagOptions& opti
   std::mt19937 rng(options.seed);
   const auto writeScan = [&](int k) {
     const double start_time = k * scan_period;
-    const sim::SimulatedScan simulated = sim::simulateScan(world, trajectory, scenario.mount, scenario.lidar,
-                                                           epoch, start_time, options.noise ? &rng : nullptr);
+    const sim::SimulatedScan simulated =
+        sim::simulateScan(world, trajectory, scenario.mount, scenario.lidar, epoch, start_time,
+                          options.noise ? &rng : nullptr, fault);
     const core::PlanarScan& planar = simulated.scan;
     sensor_msgs::LaserScan scan;
     scan.header.seq = static_cast<uint32_t>(k);
@@ -90,15 +107,17 @@ void writeSimulationBag(const sim::Scenario& scenario, const SimBagOptions& opti
     scan.range_min = planar.range_min;
     scan.range_max = planar.range_max;
     scan.ranges = planar.ranges;
-    // A driver publishes the scan once its last beam is measured.
-    bag.write(options.scan_topic, toRosTime(at(start_time + scan_period)), scan);
+    // A driver publishes the scan once its last beam is measured (never before the stamp it gives it).
+    bag.write(options.scan_topic, toRosTime(std::max(at(start_time + scan_period), planar.stamp)), scan);
   };
 
   // Written in time order, as a recorder does (readers then go through the file once).
   const int scans = static_cast<int>(std::ceil(scenario.duration / scan_period - 1e-9));
   long next_odometry = 0;
   for (int k = 0; k < scans; ++k) {
-    while (next_odometry <= tf_samples && tfTime(next_odometry) <= (k + 1) * scan_period)
+    // When the scan is recorded [s]: see writeScan.
+    const double recorded = std::max((k + 1) * scan_period, k * scan_period + fault.stamp_error);
+    while (next_odometry <= tf_samples && tfTime(next_odometry) <= recorded)
       writeOdometry(next_odometry++);
     writeScan(k);
   }
@@ -114,6 +133,9 @@ void writeSimulationBag(const sim::Scenario& scenario, const SimBagOptions& opti
   truth.start = scenario.start;
   truth.pieces = scenario.pieces;
   truth.world = world;
+  truth.timing_fault = fault;
+  truth.beam_period = static_cast<double>(scenario.lidar.timeIncrement());
+  truth.sweep_period = scan_period;
   sim::writeTruth(truth, truth_path);
 }
 

@@ -10,16 +10,19 @@
 
 namespace lidar_deskew::sim {
 
-/// One experiment: a LIDAR on a robot moving through the hall.
+/// One experiment: a LIDAR on a robot moving through a world (the hall, unless said otherwise).
 struct Scenario {
   std::string name;  ///< e.g. "UTM-30LX/high/arc"
   LidarModel lidar;
-  std::string speed;   ///< "normal" (1.5 m/s, 2 rad/s), "high" (6 m/s, 5 rad/s) or "varying"
-  std::string motion;  ///< "translation", "rotation", "arc" or "varying"
+  /// "normal" (1.5 m/s, 2 rad/s; turns: 1 m/s, 2 rad/s), "high" (6 m/s, 5 rad/s; turns: 2 m/s,
+  /// 5 rad/s) or "varying"
+  std::string speed;
+  std::string motion;  ///< "translation", "rotation", "arc", "varying" or "turns"
   Pose2 mount;         ///< laser on the base
   Pose2 start;         ///< base pose in the world at t = 0
   std::vector<MotionPiece> pieces;
-  double duration = 1.0;  ///< [s] scans start at 0, 1/rate, ... while below duration
+  double duration = 1.0;        ///< [s] scans start at 0, 1/rate, ... while below duration
+  World world = World::hall();  ///< where the robot drives
 
   PiecewiseTrajectory trajectory() const { return PiecewiseTrajectory(start, pieces); }
 };
@@ -29,12 +32,23 @@ struct Scenario {
 /// and high speed (6 m/s, 5 rad/s, laser 0.25 m ahead, 0.05 m left, turned 0.1 rad). Plus "varying":
 /// the ILD26TRI with speed and turn rate changing inside each scan. 19 scenarios.
 std::vector<Scenario> paperScenarios();
-/// The scenario of that name; throws std::invalid_argument listing the names otherwise.
+/// Recordings for estimating a sensor's timing (deskew_calibrate): motion "turns", a drive of about
+/// 14 s whose turn rate changes every 1 to 2 s (standing still, turning in place both ways, straight,
+/// arcs), so scans taken at different turn rates see the same walls. "normal": up to 1 m/s and
+/// 2 rad/s; "high": up to 2 m/s and 5 rad/s. For ILD26TRI, UTM-30LX, UTM-30LX-270 (in the hall,
+/// mount as in the paper's speeds) and LDS-01 (in World::smallRoom(), its 3.5 m reach; laser 32 mm
+/// behind the base as on a TurtleBot3 Burger). "<sensor>/normal/turns", "<sensor>/high/turns":
+/// 8 scenarios, not part of paperScenarios() (docs/RESULTS.md).
+std::vector<Scenario> calibrationScenarios();
+/// Every planar scenario: paperScenarios() then calibrationScenarios().
+std::vector<Scenario> planarScenarios();
+/// The planar scenario of that name; throws std::invalid_argument listing the names otherwise.
 Scenario findScenario(const std::string& name);
 /// The same experiment with the sensor turning clockwise (negative angle increment); name + "/clockwise".
 Scenario clockwiseVariant(Scenario scenario);
 
-/// What the metrics need to know about a simulated bag: the world, the true motion, the mount.
+/// What the metrics need to know about a simulated bag: the world, the true motion, the mount, and
+/// how the scans' timing was faulted.
 struct Truth {
   std::string scenario;
   core::TimeNs epoch = 0;    ///< [ns] bag time of t = 0
@@ -43,13 +57,26 @@ struct Truth {
   Pose2 start;
   std::vector<MotionPiece> pieces;
   World world;
+  /// The messages' timing fault (none in files written before faults existed).
+  TimingFault timing_fault;
+  /// [s] true time between consecutive beams (0: not recorded, an older file).
+  double beam_period = 0.0;
+  /// [s] true time between scans, 1 / rate (0: not recorded, an older file).
+  double sweep_period = 0.0;
 
   PiecewiseTrajectory trajectory() const { return PiecewiseTrajectory(start, pieces); }
   /// True laser pose in the world at bag time `time` [ns].
   Pose2 laserPose(core::TimeNs time) const;
+  /// [s] the parameter that corrects the stamps: true earliest-beam time = stamp + timeOffset().
+  double timeOffset() const { return 0.0 - timing_fault.stamp_error; }
+  /// [ns] true time of beam `index` of a scan of `beams` beams stamped `stamp` (needs beam_period).
+  core::TimeNs beamTime(core::TimeNs stamp, std::size_t index, std::size_t beams) const;
 };
 
 /// Writes / reads the ground-truth file (a small line-based text format, full double precision).
+/// The timing lines: "time_offset S" (= -stamp_error), "reversed 0|1", "time_increment_factor F",
+/// "zero_scan_time 0|1", "beam_period S", "sweep_period S"; absent in older files, which read as no
+/// fault and periods 0.
 /// read throws std::runtime_error naming the file and line on malformed input.
 void writeTruth(const Truth& truth, const std::string& path);
 Truth readTruth(const std::string& path);

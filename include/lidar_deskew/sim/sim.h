@@ -58,7 +58,14 @@ class World {
   void add(const Eigen::Vector2d& a, const Eigen::Vector2d& b) { segments_.push_back({a, b}); }
   /// A closed polygon through `corners`.
   void addPolygon(const std::vector<Eigen::Vector2d>& corners);
+  /// A closed polygon through `corners` that is the world's outer boundary: added like addPolygon
+  /// and kept as outline() (a world has at most one; a later call replaces the outline kept).
+  void addOutline(const std::vector<Eigen::Vector2d>& corners);
   const std::vector<Segment>& segments() const { return segments_; }
+  /// The outer boundary given to addOutline, counter-clockwise; empty if there is none.
+  const std::vector<Eigen::Vector2d>& outline() const { return outline_; }
+  /// Whether `point` lies inside outline() (false without one). Obstacles inside it do not count.
+  bool insideOutline(const Eigen::Vector2d& point) const;
 
   /// Where a ray meets the nearest wall: distance [m] along the unit ray, and the wall's unit normal.
   struct Hit {
@@ -78,9 +85,17 @@ class World {
   static World hall();
   /// The hall's outer walls as one closed polygon, counter-clockwise (its first segments).
   static std::vector<Eigen::Vector2d> hallOutline();
+  /// A 5 x 4 m room (x from -2.5 to 2.5 m, y from -2 to 2 m) for short-range sensors such as the
+  /// LDS-01 (3.5 m): from anywhere near its middle every wall is within 3.5 m. The north-east corner is
+  /// cut by a wall at 45 deg, a wall at about 32 deg stands across the south-east corner, and a 0.3 m
+  /// box stands 0.3 m from the west wall.
+  static World smallRoom();
+  /// The small room's outer walls as one closed polygon, counter-clockwise (its first segments).
+  static std::vector<Eigen::Vector2d> smallRoomOutline();
 
  private:
   std::vector<Segment> segments_;
+  std::vector<Eigen::Vector2d> outline_;
 };
 
 /// Base pose in the world at time t [s].
@@ -151,27 +166,62 @@ struct LidarModel {
   float angleIncrement() const;  ///< [rad], signed
   float angleMin() const;        ///< [rad] first beam: -fov/2 (counter-clockwise) or +fov/2 (clockwise)
   float timeIncrement() const;   ///< [s] revolution time * |increment| / 2pi
+  /// [s] from the first beam to the last: (beams - 1) * timeIncrement() (the float, as a double).
+  double sweepDuration() const;
 
   /// Paper Table 1 / 2: Hokuyo UTM-30LX 1440 beams 360 deg 40 Hz sigma 30 mm; Inmotion ILD26TRI
   /// 360 beams 360 deg 8 Hz sigma 60 mm; UTM-30LX 1080 beams 270 deg 40 Hz sigma 30 mm.
   static LidarModel utm30lx360();
   static LidarModel ild26tri();
   static LidarModel utm30lx270();
+  /// A TurtleBot3's LDS-01 (HLS-LFCD-LDS): 360 beams over 360 deg (1 deg steps), 5 Hz (300 rpm),
+  /// counter-clockwise, range 0.12 to 3.5 m, sigma 15 mm (the data sheet's accuracy at short range).
+  static LidarModel lds01();
+};
+
+/// How a LaserScan message gets its sensor's timing wrong: what deskew_calibrate estimates and the
+/// node's time_offset, beam order and scan_period parameters correct (docs/DESIGN.md time
+/// conventions). The default is no fault: the message tells the truth.
+struct TimingFault {
+  /// [s] header.stamp = true time of the earliest beam + stamp_error. The correcting parameter is
+  /// time_offset = -stamp_error (true first-beam time = stamp + time_offset).
+  double stamp_error = 0.0;
+  /// The beams' time order is the reverse of their index order: beam i (at angle angle_min +
+  /// i * angle_increment, as the message says) is measured at t0 + (n - 1 - i) * dt, so the earliest
+  /// beam is index n - 1. The message still claims index order (time_increment > 0).
+  bool reversed = false;
+  /// The message's time_increment = factor * the true beam period (0: "unknown").
+  double time_increment_factor = 1.0;
+  /// The message's scan_time = 0 (with time_increment_factor 0 the message tells no period at all).
+  bool zero_scan_time = false;
+
+  /// Whether the message tells anything but the truth.
+  bool any() const {
+    return stamp_error != 0.0 || reversed || time_increment_factor != 1.0 || zero_scan_time;
+  }
+  /// Throws std::invalid_argument naming the field if stamp_error or time_increment_factor is not
+  /// finite or time_increment_factor is negative.
+  void validate() const;
+  /// A driver that stamps the scan with its latest beam's time: stamp_error = model.sweepDuration().
+  static TimingFault stampedAtEnd(const LidarModel& model);
 };
 
 /// One simulated scan and its truth.
 struct SimulatedScan {
-  core::PlanarScan scan;                    ///< as the driver publishes it (stamp at the first beam)
-  std::vector<double> beam_times;           ///< [s] true time of every beam
+  core::PlanarScan scan;                    ///< as the driver publishes it (with the TimingFault's errors)
+  std::vector<double> beam_times;           ///< [s] true time of every beam, by index (since epoch)
   std::vector<Eigen::Vector2d> world_hits;  ///< [m] true hit point per beam (NaN where no hit)
 };
 
 /// Casts every beam from the laser's true pose at that beam's own time: laser = base(t) (+) mount.
-/// `start_time` [s] is the first beam's time; the scan is stamped `epoch + start_time`.
+/// `start_time` [s] is the earliest beam's true time; without a fault that is beam 0 and the scan is
+/// stamped `epoch + start_time`. Beam i is truly measured at start_time + i * dt (dt =
+/// model.timeIncrement()), or at start_time + (n - 1 - i) * dt if `fault.reversed`; the message's
+/// stamp, time_increment and scan_time carry `fault`'s errors (see TimingFault).
 /// `noise`: Gaussian range noise of model.range_sigma when given; exact ranges when null.
-/// Beams with no hit within range_max get +inf.
+/// Beams with no hit within range_max get +inf. Throws std::invalid_argument for an invalid fault.
 SimulatedScan simulateScan(const World& world, const Trajectory& trajectory, const Pose2& mount,
                            const LidarModel& model, core::TimeNs epoch, double start_time,
-                           std::mt19937* noise = nullptr);
+                           std::mt19937* noise = nullptr, const TimingFault& fault = TimingFault());
 
 }  // namespace lidar_deskew::sim

@@ -16,15 +16,22 @@ struct SimBagOptions {
   std::string base_frame = "base_link";
   std::string laser_frame = "laser";
   std::string scan_topic = "/scan";
+  /// How the /scan messages get the sensor's timing wrong (none by default); recorded in the truth.
+  TimingFault timing_fault;
+  /// [s] odometry starts this long before the first scan and ends this long after the last one.
+  double tf_margin = 0.1;
 };
 
-/// Simulates `scenario` and writes `bag_path` with
-/// - /scan (sensor_msgs/LaserScan): stamped at the first beam, recorded at the scan's end;
+/// Simulates `scenario` in its world and writes `bag_path` with
+/// - /scan (sensor_msgs/LaserScan): stamped at the first beam (or as options.timing_fault says),
+///   recorded at the scan's end (or at its stamp, if that is later);
 /// - /tf (tf2_msgs/TFMessage): fixed -> base at tf_rate, the true pose (perfect odometry), from
-///   0.1 s before the first scan to 0.1 s after the last;
+///   tf_margin before the first scan to tf_margin after the last, both as the scans truly are and as
+///   their (faulted) messages claim;
 /// - /tf_static: base -> laser (the mount), once;
 /// - /odom (nav_msgs/Odometry): the same poses with the commanded twist;
-/// and the matching truth file at `truth_path`. Throws on I/O errors.
+/// and the matching truth file at `truth_path` (with the fault and the true beam and sweep periods).
+/// Throws on I/O errors, and std::invalid_argument for an invalid fault or a negative tf_margin.
 void writeSimulationBag(const sim::Scenario& scenario, const SimBagOptions& options,
                         const std::string& bag_path, const std::string& truth_path);
 
