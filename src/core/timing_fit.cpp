@@ -143,13 +143,14 @@ TimingFit::TimingFit(std::vector<PlanarScan> scans, const mrpt::poses::CPose3D& 
     message_periods.push_back(core::messagePeriod(scan));
   message_period_ = message_periods.empty() ? 0.0 : medianOf(message_periods);
   const TimeNs period = secondsToNs(nominal_period_);
+  const TimeNs margin = secondsToNs(std::max(1.25 * nominal_period_, config.min_range) + 0.01);
   for (PlanarScan& scan : scans) {
-    // Any offset searched (+-1.25 periods) and a sweep after it must be covered.
+    // Any offset searched and a sweep after it must be covered.
     try {
-      (void)motion.basePose(scan.stamp - 2 * period);
+      (void)motion.basePose(scan.stamp - margin);
       const mrpt::poses::CPose3D start = motion.basePose(scan.stamp);
       const mrpt::poses::CPose3D end = motion.basePose(scan.stamp + period);
-      (void)motion.basePose(scan.stamp + 3 * period);
+      (void)motion.basePose(scan.stamp + margin + period);
       ScanMotion moved;
       moved.turn_rate = std::remainder(end.yaw() - start.yaw(), kTwoPi) / nominal_period_;
       moved.speed = std::hypot(end.x() - start.x(), end.y() - start.y()) / nominal_period_;
@@ -311,8 +312,10 @@ TimingEstimate estimateTiming(const TimingFit& fit, const TimingFitConfig& confi
       timing.beam_order = order;
       timing.scan_period = period;
       timing.use_scan_period = true;
-      const double coarse_step = period / 24.0;
-      const Curve coarse = evaluate(fit, timing, grid(0.0, 1.25 * period, coarse_step), cap);
+      // +-1.25 periods and at least +-100 ms (fast sensors, long latencies), in at most 49 steps.
+      const double range = std::max(1.25 * period, config.min_range);
+      const double coarse_step = std::max(period / 24.0, range / 24.0);
+      const Curve coarse = evaluate(fit, timing, grid(0.0, range, coarse_step), cap);
       const double best = minimumOf(coarse.offsets, coarse.mean).first;
       const double fine_step = std::min(config.resolution * 5.0, coarse_step / 4.0);
       Candidate candidate;

@@ -24,8 +24,11 @@ struct TimingFitConfig {
   double turning_rate = 0.3;
   /// scans that must turn for the timing to be told at all
   std::size_t min_turning_scans = 10;
-  /// [s] the offset estimate's resolution: the fine search's step
+  /// [s] the offset estimate's resolution: the fine search's step is at most 5 x this (a parabola
+  /// through the best three refines it)
   double resolution = 0.0001;
+  /// [s] the offset is searched over +-max(1.25 periods, this)
+  double min_range = 0.1;
   /// [s] an estimate this close to "as the message says" (or to "stamped at the end") is snapped to it
   double snap = 0.0005;
   /// largest one-standard-deviation uncertainty of the offset, as a share of the sweep period, for an
@@ -110,7 +113,7 @@ struct TimingEstimate {
 };
 
 /// Estimates time_offset, beam_order and, where the message's is 0 or disagrees with the data, the
-/// period, from `fit`: a coarse search of the offset over +-1.25 periods, a fine one at `resolution`
+/// period, from `fit`: a coarse search of the offset over +-max(1.25 periods, min_range), a fine one
 /// round the best, per beam order and candidate period (the message's and `fit`'s nominal one);
 /// uncertainties by bootstrap over scans. See docs/CALIBRATION.md.
 TimingEstimate estimateTiming(const TimingFit& fit, const TimingFitConfig& config);
