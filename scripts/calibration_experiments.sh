@@ -23,8 +23,9 @@ status=0
 "$bin/deskew_calibrate" "$repo/data/neato_xv11/test_drive.bag" --scan-topic /stable_scan \
   --output "$work/neato_timing.yaml" >"$work/neato.txt"
 summary=$(awk -F'|' 'NR > 2 {
-    error = $6 + 0; if (error < 0) error = -error; if (error > worst) { worst = error; at = $2 "," $3 }
-    ratio = $(NF - 1) + 0; if (ratio > high) { high = ratio; high_at = $2 "," $3 }
+    gsub(/^ +| +$/, "", $2); gsub(/^ +| +$/, "", $3)
+    error = $6 + 0; if (error < 0) error = -error; if (error > worst) { worst = error; at = $2 ", " $3 }
+    ratio = $(NF - 1) + 0; if (ratio > high) { high = ratio; high_at = $2 ", " $3 }
     if ($7 ~ /right/) right++; cases++
   } END {
     printf "%d recordings: the beam order right in %d; the offset within %.2f ms of the truth at worst (%s);", cases, right, worst, at

@@ -84,10 +84,7 @@ Calibration calibrateBag(const CalibrateOptions& options) {
   calibration.stamp_period = fit.nominalPeriod();
   calibration.stamp_period_sigma = fit.nominalPeriodSigma();
   calibration.estimate = core::estimateTiming(fit, options.fit);
-  const core::PlanarScan& first = fit.scan(0);
-  const double period = calibration.estimate.period > 0.0 ? calibration.estimate.period : fit.nominalPeriod();
-  calibration.sweep = period * std::abs(static_cast<double>(first.angle_increment)) / (2.0 * M_PI) *
-                      static_cast<double>(first.ranges.empty() ? 0 : first.ranges.size() - 1);
+  calibration.sweep = calibration.estimate.sweep;
   return calibration;
 }
 
@@ -145,9 +142,9 @@ void writeTimingParams(const Calibration& calibration, const std::string& bag, c
       << "), estimated by deskew_calibrate\n# from " << bag << ": " << estimate.scans << " scans, "
       << estimate.pairs << " overlapping pairs, " << estimate.turning_scans << " turning.\n"
       << "# first beam - stamp " << number(estimate.time_offset * 1e3, 2) << " +- "
-      << number(estimate.offset_sigma * 1e3, 2) << " ms; consistency "
-      << number(estimate.before.mean * 1e3, 2) << " mm with the message's timing, "
-      << number(estimate.after.mean * 1e3, 2) << " mm with this.\n"
+      << number(estimate.offset_sigma * 1e3, 2) << " ms; overlapping scans "
+      << (estimate.before.pairs ? number(estimate.before.mean * 1e3, 2) + " mm" : std::string("-"))
+      << " apart with the message's timing, " << number(estimate.after.mean * 1e3, 2) << " mm with this.\n"
       << "# Use: roslaunch lidar_deskew deskew.launch params:=" << path << "\n"
       << "#      rosrun lidar_deskew deskew_bag IN.bag OUT.bag --params " << path << "\n";
   out << "stamp_at: " << core::toString(timing.stamp_at) << "\n";

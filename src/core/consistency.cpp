@@ -64,9 +64,7 @@ bool PlacedScan::distanceToContour(const Eigen::Vector2d& query, double radius, 
   if (points_.empty())
     return false;
   const auto bins = static_cast<std::ptrdiff_t>(bin_begin_.size() - 1);
-  std::ptrdiff_t bin = static_cast<std::ptrdiff_t>(binOf(query)) - kBinReach;
-  if (bin < 0)
-    bin += bins;
+  std::ptrdiff_t bin = ((static_cast<std::ptrdiff_t>(binOf(query)) - kBinReach) % bins + bins) % bins;
   double best = radius * radius;
   std::ptrdiff_t found = -1;
   for (int step = -kBinReach; step <= kBinReach; ++step, bin = bin + 1 == bins ? 0 : bin + 1) {
@@ -106,6 +104,36 @@ bool PlacedScan::distanceToContour(const Eigen::Vector2d& query, double radius, 
   return true;
 }
 
+PlacedScan placeCorrected(const DeskewedScan& corrected, const mrpt::poses::CPose3D& laser,
+                          double bearing_step, std::size_t stride) {
+  stride = std::max<std::size_t>(1, stride);
+  std::vector<Eigen::Vector2d> points;
+  points.reserve(corrected.points.size() / stride + 1);
+  for (std::size_t i = 0; i < corrected.points.size(); i += stride) {
+    const Eigen::Vector3d& position = corrected.points[i].position;
+    double x, y, z;
+    laser.composePoint(position.x(), position.y(), position.z(), x, y, z);
+    points.emplace_back(x, y);
+  }
+  return PlacedScan(corrected.reference_time, {laser.x(), laser.y()},
+                    bearing_step * static_cast<double>(stride), std::move(points));
+}
+
+PlacedScan placeRaw(const PlanarScan& scan, const mrpt::poses::CPose3D& laser, TimeNs time) {
+  const ReturnTest is_return(scan);
+  std::vector<Eigen::Vector2d> points;
+  for (std::size_t i = 0; i < scan.ranges.size(); ++i) {
+    if (!is_return(scan.ranges[i]))
+      continue;
+    const double angle = scan.angle_min + static_cast<double>(i) * scan.angle_increment;
+    double x, y, z;
+    laser.composePoint(scan.ranges[i] * std::cos(angle), scan.ranges[i] * std::sin(angle), 0.0, x, y, z);
+    points.emplace_back(x, y);
+  }
+  return PlacedScan(time, {laser.x(), laser.y()}, std::abs(static_cast<double>(scan.angle_increment)),
+                    std::move(points));
+}
+
 double pairDistance(const PlacedScan& scan, const PlacedScan& other, const ConsistencyConfig& config,
                     double* overlap) {
   const std::vector<Eigen::Vector2d>& points = scan.points();
@@ -139,10 +167,11 @@ std::vector<std::pair<std::size_t, std::size_t>> overlappingPairs(const std::vec
       continue;
     near.clear();
     for (std::size_t earlier = later; earlier-- > 0;) {
+      if (!usable(earlier))
+        continue;  // (an empty scan has no time)
       if (scans[later].time() - scans[earlier].time() > window)
         break;
-      if (usable(earlier) &&
-          (scans[later].origin() - scans[earlier].origin()).norm() <= selection.max_baseline)
+      if ((scans[later].origin() - scans[earlier].origin()).norm() <= selection.max_baseline)
         near.push_back(earlier);
     }
     if (near.empty())
@@ -150,7 +179,7 @@ std::vector<std::pair<std::size_t, std::size_t>> overlappingPairs(const std::vec
     // Evenly spread over the candidates: the nearest in time, the farthest, and between.
     const std::size_t count = std::min(selection.partners, near.size());
     for (std::size_t k = 0; k < count; ++k) {
-      const std::size_t earlier = near[count == 1 ? 0 : k * (near.size() - 1) / (count - 1)];
+      const std::size_t earlier = near[spreadIndex(k, count, near.size())];
       double overlap = 0.0;
       pairDistance(scans[later], scans[earlier], config, &overlap);
       if (overlap >= config.min_overlap)

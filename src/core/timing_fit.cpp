@@ -193,18 +193,9 @@ PlacedScan TimingFit::placeOne(std::size_t i, const TimingConfig& timing, ScanDe
                                DeskewedScan& corrected) const {
   const PlanarScan& scan = scans_[i];
   try {
-    const BeamTiming beams = resolveTiming(scan, timing);
-    deskewer.deskew(scan, beams, mount_, motion_, corrected);
-    const mrpt::poses::CPose3D laser = motion_.basePose(corrected.reference_time) + mount_;
-    std::vector<Eigen::Vector2d> points;
-    points.reserve(corrected.points.size());
-    for (const DeskewedPoint& point : corrected.points) {
-      double x, y, z;
-      laser.composePoint(point.position.x(), point.position.y(), point.position.z(), x, y, z);
-      points.emplace_back(x, y);
-    }
-    return PlacedScan(corrected.reference_time, {laser.x(), laser.y()},
-                      std::abs(static_cast<double>(scan.angle_increment)), std::move(points));
+    deskewer.deskew(scan, resolveTiming(scan, timing), mount_, motion_, corrected);
+    return placeCorrected(corrected, motion_.basePose(corrected.reference_time) + mount_,
+                          std::abs(static_cast<double>(scan.angle_increment)));
   } catch (const InvalidInput&) {
   } catch (const MotionUnavailable&) {
   }
@@ -225,21 +216,8 @@ std::vector<PlacedScan> TimingFit::place(const TimingConfig& timing) const {
 
 std::vector<PlacedScan> TimingFit::placeRaw() const {
   std::vector<PlacedScan> placed;
-  for (const PlanarScan& scan : scans_) {
-    const mrpt::poses::CPose3D laser = motion_.basePose(scan.stamp) + mount_;
-    const ReturnTest is_return(scan);
-    std::vector<Eigen::Vector2d> points;
-    for (std::size_t i = 0; i < scan.ranges.size(); ++i) {
-      if (!is_return(scan.ranges[i]))
-        continue;
-      const double angle = scan.angle_min + static_cast<double>(i) * scan.angle_increment;
-      double x, y, z;
-      laser.composePoint(scan.ranges[i] * std::cos(angle), scan.ranges[i] * std::sin(angle), 0.0, x, y, z);
-      points.emplace_back(x, y);
-    }
-    placed.emplace_back(scan.stamp, Eigen::Vector2d(laser.x(), laser.y()),
-                        std::abs(static_cast<double>(scan.angle_increment)), std::move(points));
-  }
+  for (const PlanarScan& scan : scans_)
+    placed.push_back(core::placeRaw(scan, motion_.basePose(scan.stamp) + mount_, scan.stamp));
   return placed;
 }
 
@@ -286,13 +264,21 @@ TimingEstimate estimateTiming(const TimingFit& fit, const TimingFitConfig& confi
   if (estimate.message_period <= 0.0 || std::abs(estimate.message_period / nominal - 1.0) > 0.05)
     periods.push_back(nominal);
 
-  if (estimate.turning_scans < config.min_turning_scans || fit.pairs().empty()) {
+  // Pairs that can tell: one of the two scans turns.
+  std::size_t turning_pairs = 0;
+  for (const auto& [earlier, later] : fit.pairs()) {
+    if (std::max(std::abs(fit.motions()[earlier].turn_rate), std::abs(fit.motions()[later].turn_rate)) >=
+        config.turning_rate)
+      ++turning_pairs;
+  }
+  estimate.turning_pairs = turning_pairs;
+  if (estimate.turning_scans < config.min_turning_scans || turning_pairs < config.min_turning_pairs) {
     std::ostringstream why;
     why << "too little turning to tell the timing: " << estimate.turning_scans << " scans turn at "
         << config.turning_rate << " rad/s or faster (fastest " << formatSeconds(estimate.fastest_turn)
-        << " rad/s), " << estimate.pairs << " overlapping pairs with motion; at least "
-        << config.min_turning_scans
-        << " turning scans are needed (turn at 0.5-2 rad/s for a few seconds, starting and stopping, "
+        << " rad/s), " << turning_pairs << " overlapping pairs with a turning scan; at least "
+        << config.min_turning_scans << " turning scans and " << config.min_turning_pairs
+        << " such pairs are needed (turn at 0.5-2 rad/s for a few seconds, starting and stopping, "
            "in sight of the same walls)";
     estimate.why = why.str();
     return estimate;
@@ -300,6 +286,7 @@ TimingEstimate estimateTiming(const TimingFit& fit, const TimingFitConfig& confi
 
   // Every beam order and candidate period: coarse offsets over +-1.25 periods, then fine round the best.
   struct Candidate {
+    Curve coarse;
     Curve fine;
     double offset = 0.0;
     double value = 0.0;
@@ -315,10 +302,10 @@ TimingEstimate estimateTiming(const TimingFit& fit, const TimingFitConfig& confi
       // +-1.25 periods and at least +-100 ms (fast sensors, long latencies), in at most 49 steps.
       const double range = std::max(1.25 * period, config.min_range);
       const double coarse_step = std::max(period / 24.0, range / 24.0);
-      const Curve coarse = evaluate(fit, timing, grid(0.0, range, coarse_step), cap);
-      const double best = minimumOf(coarse.offsets, coarse.mean).first;
-      const double fine_step = std::min(config.resolution * 5.0, coarse_step / 4.0);
       Candidate candidate;
+      candidate.coarse = evaluate(fit, timing, grid(0.0, range, coarse_step), cap);
+      const double best = minimumOf(candidate.coarse.offsets, candidate.coarse.mean).first;
+      const double fine_step = std::min(config.resolution * 5.0, coarse_step / 4.0);
       candidate.period = period;
       candidate.fine = evaluate(fit, timing, grid(best, 1.5 * coarse_step, fine_step), cap);
       std::tie(candidate.offset, candidate.value) = minimumOf(candidate.fine.offsets, candidate.fine.mean);
@@ -337,28 +324,38 @@ TimingEstimate estimateTiming(const TimingFit& fit, const TimingFitConfig& confi
   }
 
   // Bootstrap over the scans: a resample draws scans with replacement; a pair counts as often as its
-  // later scan was drawn.
+  // later scan was drawn. Each resample's minimum is sought over the whole coarse range, then, when it
+  // falls in the fine window, on the fine grid: a flat or two-valleyed score shows as a wide spread.
+  const auto resampledMinimum = [](const Candidate& candidate, const std::vector<double>& weights) {
+    const std::vector<double> coarse = weightedMeans(candidate.coarse, weights);
+    const auto [at, value] = minimumOf(candidate.coarse.offsets, coarse);
+    if (at < candidate.fine.offsets.front() || at > candidate.fine.offsets.back())
+      return std::make_pair(at, value);
+    return minimumOf(candidate.fine.offsets, weightedMeans(candidate.fine, weights));
+  };
   std::mt19937 random(config.seed);
   std::uniform_int_distribution<std::size_t> draw(0, fit.scanCount() - 1);
   std::vector<double> offsets;
   std::size_t order_held = 0;
   const auto& pairs = fit.pairs();
-  const auto rivalAtBest = [&](const Curve& curve, const std::vector<double>& weights) {
-    const std::vector<double> means = weightedMeans(curve, weights);
-    return *std::min_element(means.begin(), means.end());
-  };
-  for (std::size_t r = 0; r < config.resamples; ++r) {
+  for (std::size_t r = 0; r < std::max<std::size_t>(2, config.resamples); ++r) {
     std::vector<double> drawn(fit.scanCount(), 0.0);
     for (std::size_t k = 0; k < fit.scanCount(); ++k)
       drawn[draw(random)] += 1.0;
     std::vector<double> weights(pairs.size());
+    double total = 0.0;
     for (std::size_t p = 0; p < pairs.size(); ++p)
-      weights[p] = drawn[pairs[p].second];
-    const std::vector<double> means = weightedMeans(best->fine, weights);
-    const auto [offset, value] = minimumOf(best->fine.offsets, means);
+      total += weights[p] = drawn[pairs[p].second];
+    if (total <= 0.0)
+      continue;  // no pair drawn: nothing to say
+    const auto [offset, value] = resampledMinimum(*best, weights);
     offsets.push_back(offset);
-    if (!rival || value < rivalAtBest(rival->fine, weights))
+    if (!rival || value < resampledMinimum(*rival, weights).second)
       ++order_held;
+  }
+  if (offsets.size() < 2) {
+    estimate.why = "too few pairs to tell the timing";
+    return estimate;
   }
   double sum = 0.0, squares = 0.0;
   for (double offset : offsets)
@@ -367,7 +364,7 @@ TimingEstimate estimateTiming(const TimingFit& fit, const TimingFitConfig& confi
   for (double offset : offsets)
     squares += (offset - mean) * (offset - mean);
   estimate.offset_sigma = std::sqrt(squares / std::max<std::size_t>(1, offsets.size() - 1));
-  estimate.order_confidence = static_cast<double>(order_held) / config.resamples;
+  estimate.order_confidence = static_cast<double>(order_held) / offsets.size();
   estimate.time_offset = best->offset;
   estimate.period = best->period;
   estimate.period_estimated = best->period != estimate.message_period;
@@ -395,8 +392,9 @@ TimingEstimate estimateTiming(const TimingFit& fit, const TimingFitConfig& confi
     timing.use_scan_period = estimate.message_period > 0.0;
   }
   const PlanarScan& first = fit.scan(0);
-  const double sweep = estimate.period * std::abs(static_cast<double>(first.angle_increment)) / kTwoPi *
-                       static_cast<double>(first.ranges.size() > 0 ? first.ranges.size() - 1 : 0);
+  const double sweep = estimate.sweep =
+      estimate.period * std::abs(static_cast<double>(first.angle_increment)) / kTwoPi *
+      static_cast<double>(first.ranges.empty() ? 0 : first.ranges.size() - 1);
   const double tolerance = std::max(config.snap, 2.0 * estimate.offset_sigma);
   if (std::abs(estimate.time_offset) <= tolerance) {
     timing.time_offset = 0.0;
@@ -430,27 +428,30 @@ void TimingCheck::reset(const TimingConfig& configured) {
   pairs_ = 0;
   scans_ = 0;
   timings_.clear();
+  pending_.reset();
 }
 
-bool TimingCheck::add(const PlanarScan& full, const mrpt::poses::CPose3D& mount, const MotionSource& motion) {
-  // Every k-th beam, at most config_.beams: the same sweep at a coarser angle (and time) step.
-  const std::size_t stride =
-      std::max<std::size_t>(1, (full.ranges.size() + config_.beams - 1) / config_.beams);
-  PlanarScan scan;
-  scan.stamp = full.stamp;
-  scan.angle_min = full.angle_min;
-  scan.angle_increment = full.angle_increment * static_cast<float>(stride);
-  scan.time_increment = full.time_increment * static_cast<float>(stride);
-  scan.scan_time = full.scan_time;
-  scan.range_min = full.range_min;
-  scan.range_max = full.range_max;
-  for (std::size_t i = 0; i < full.ranges.size(); i += stride)
-    scan.ranges.push_back(full.ranges[i]);
+bool TimingCheck::add(const PlanarScan& scan, const mrpt::poses::CPose3D& mount, const MotionSource& motion) {
+  // A scan waits here until the motion covers every alternative (with stamp_at end configured, the
+  // "start" one reaches a sweep past the last beam, which tf brings later); a newer scan replaces it.
+  pending_ = Pending{scan, mount};
+  return tryPending(motion);
+}
+
+bool TimingCheck::tryPending(const MotionSource& motion) {
+  if (!pending_)
+    return false;
+  const PlanarScan& scan = pending_->scan;
+  const mrpt::poses::CPose3D& mount = pending_->mount;
   // The configured timing and its alternatives for this scan.
   std::vector<std::pair<std::string, TimingConfig>> timings;
+  Entry entry;
+  entry.time = scan.stamp;
   try {
     const BeamTiming beams = resolveTiming(scan, configured_);
-    const double sweep = nsToSeconds(beams.latestBeamTime() - beams.earliestBeamTime());
+    const TimeNs begin = beams.earliestBeamTime();
+    const TimeNs end = std::max(beams.latestBeamTime(), begin + 1);
+    const double sweep = nsToSeconds(end - begin);
     const auto flipStamp = [](TimingConfig timing) {
       timing.stamp_at = timing.stamp_at == StampAt::kStart ? StampAt::kEnd : StampAt::kStart;
       return timing;
@@ -472,49 +473,41 @@ bool TimingCheck::add(const PlanarScan& full, const mrpt::poses::CPose3D& mount,
                {order_name, flipOrder(configured_)},
                {stamp_name + ", " + order_name, flipOrder(flipStamp(configured_))},
                {offset_name, middle}};
-  } catch (const InvalidInput&) {
-    return false;
-  }
-  Entry entry;
-  entry.time = scan.stamp;
-  try {
-    const BeamTiming beams = resolveTiming(scan, configured_);
-    const TimeNs begin = beams.earliestBeamTime();
-    const TimeNs end = std::max(beams.latestBeamTime(), begin + 1);
+    // Covered under every timing? (One lookup at each end, before any correction.)
+    for (const auto& named : timings) {
+      const BeamTiming resolved = resolveTiming(scan, named.second);
+      (void)motion.basePose(resolved.earliestBeamTime());
+      (void)motion.basePose(resolved.latestBeamTime());
+    }
     entry.turn_rate =
         std::abs(std::remainder(motion.basePose(end).yaw() - motion.basePose(begin).yaw(), 2.0 * M_PI)) /
-        nsToSeconds(end - begin);
-    for (const auto& [name, timing] : timings) {
-      const BeamTiming resolved = resolveTiming(scan, timing);
-      deskewer_.deskew(scan, resolved, mount, motion, corrected_);
-      const mrpt::poses::CPose3D laser = motion.basePose(corrected_.reference_time) + mount;
-      std::vector<Eigen::Vector2d> points;
-      points.reserve(corrected_.points.size());
-      for (const DeskewedPoint& point : corrected_.points) {
-        double x, y, z;
-        laser.composePoint(point.position.x(), point.position.y(), point.position.z(), x, y, z);
-        points.emplace_back(x, y);
-      }
-      entry.placed.emplace_back(corrected_.reference_time, Eigen::Vector2d(laser.x(), laser.y()),
-                                std::abs(static_cast<double>(scan.angle_increment)), std::move(points));
+        sweep;
+    // Every return corrected, every k-th placed: at most config_.beams a scan.
+    const std::size_t stride = std::max<std::size_t>(
+        1, (scan.ranges.size() + config_.beams - 1) / std::max<std::size_t>(1, config_.beams));
+    for (const auto& named : timings) {
+      deskewer_.deskew(scan, resolveTiming(scan, named.second), mount, motion, corrected_);
+      entry.placed.push_back(placeCorrected(corrected_, motion.basePose(corrected_.reference_time) + mount,
+                                            std::abs(static_cast<double>(scan.angle_increment)), stride));
     }
-  } catch (const InvalidInput&) {
-    return false;
   } catch (const MotionUnavailable&) {
+    return false;  // not yet covered: it waits for the next call (or a newer scan)
+  } catch (const InvalidInput&) {
+    pending_.reset();
     return false;
   }
+  pending_.reset();
   timings_ = std::move(timings);
   ++scans_;
   // Partners: spread over the history, the newest first.
-  const TimeNs horizon = scan.stamp - secondsToNs(config_.history);
+  const TimeNs horizon = entry.time - secondsToNs(config_.history);
   history_.erase(
       std::remove_if(history_.begin(), history_.end(),
-                     [&](const Entry& old) { return old.time < horizon || old.time >= scan.stamp; }),
+                     [&](const Entry& old) { return old.time < horizon || old.time >= entry.time; }),
       history_.end());
   const std::size_t count = std::min(config_.partners, history_.size());
   for (std::size_t k = 0; k < count; ++k) {
-    const Entry& partner =
-        history_[history_.size() - 1 - (count == 1 ? 0 : k * (history_.size() - 1) / (count - 1))];
+    const Entry& partner = history_[history_.size() - 1 - spreadIndex(k, count, history_.size())];
     if (std::max(partner.turn_rate, entry.turn_rate) < config_.turning_rate)
       continue;
     // The pair counts when it overlaps under any of the timings (a wrong one distorts turns by metres).

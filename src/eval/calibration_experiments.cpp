@@ -36,8 +36,9 @@ int main(int argc, char** argv) {
       const eval::CalibrationRun run = eval::runCalibrationCase(cases[k], directory);
       std::printf("%s", eval::calibrationTableRow(run).c_str());
       const bool fault_free = !cases[k].timing_fault.any();
-      const bool met = run.calibration.estimate.told && std::abs(run.offset_error) <= 0.0005 && run.order_right &&
-                       run.corrected_mm <= 1.05 * run.floor_mm && (!fault_free || !run.calibration.estimate.changed);
+      const bool met = run.calibration.estimate.told && std::abs(run.offset_error) <= 0.0005 &&
+                       run.order_right && run.corrected_mm <= 1.05 * run.floor_mm &&
+                       (!fault_free || !run.calibration.estimate.changed);
       if (!met) {
         ++missed;
         std::fprintf(stderr, "case %zu (%s, %s) misses a target%s\n", k, cases[k].scenario.c_str(),

@@ -10,7 +10,8 @@
 namespace lidar_deskew::eval {
 namespace {
 
-sim::TimingFault fault(double stamp_error, bool reversed = false, double factor = 1.0, bool zero_scan_time = false) {
+sim::TimingFault fault(double stamp_error, bool reversed = false, double factor = 1.0,
+                       bool zero_scan_time = false) {
   sim::TimingFault made;
   made.stamp_error = stamp_error;
   made.reversed = reversed;
@@ -26,8 +27,9 @@ double atEnd(const std::string& scenario) {
 }  // namespace
 
 std::vector<CalibrationCase> calibrationCases() {
-  const std::string lds = "LDS-01/normal/turns", lds_high = "LDS-01/high/turns", ild = "ILD26TRI/normal/turns",
-                    ild_high = "ILD26TRI/high/turns", utm = "UTM-30LX/normal/turns", utm_high = "UTM-30LX/high/turns",
+  const std::string lds = "LDS-01/normal/turns", lds_high = "LDS-01/high/turns",
+                    ild = "ILD26TRI/normal/turns", ild_high = "ILD26TRI/high/turns",
+                    utm = "UTM-30LX/normal/turns", utm_high = "UTM-30LX/high/turns",
                     utm270 = "UTM-30LX-270/normal/turns", utm270_high = "UTM-30LX-270/high/turns";
   return {
       {ild, "none", fault(0.0), 1},
@@ -141,19 +143,21 @@ std::string calibrationTableRow(const CalibrationRun& run) {
     }
   }
   char period[48];
-  std::snprintf(period, sizeof period, "%.3f%s", estimate.period * 1e3, estimate.period_estimated ? " (stamps)" : "");
+  std::snprintf(period, sizeof period, "%.3f%s", estimate.period * 1e3,
+                estimate.period_estimated ? " (stamps)" : "");
   char message[32];
   if (run.message_timing_mm < 0.0)
     std::snprintf(message, sizeof message, "refused");
   else
     std::snprintf(message, sizeof message, "%.1f", run.message_timing_mm);
   char row[1024];
-  std::snprintf(row, sizeof row,
-                "| %s | %s | %.2f | %.2f ± %.2f | %+.2f | %s (%.0f %%) | %s | %s | %s | %.2f | %.2f | %.2f | %.3f |\n",
-                run.recording.scenario.c_str(), run.recording.fault.c_str(), run.true_offset * 1e3,
-                estimate.time_offset * 1e3, estimate.offset_sigma * 1e3, run.offset_error * 1e3,
-                run.order_right ? "right" : "WRONG", 100.0 * estimate.order_confidence, period, written.c_str(), message,
-                run.corrected_mm, run.true_timing_mm, run.floor_mm, run.corrected_mm / run.floor_mm);
+  std::snprintf(
+      row, sizeof row,
+      "| %s | %s | %.2f | %.2f ± %.2f | %+.2f | %s (%.0f %%) | %s | %s | %s | %.2f | %.2f | %.2f | %.3f |\n",
+      run.recording.scenario.c_str(), run.recording.fault.c_str(), run.true_offset * 1e3,
+      estimate.time_offset * 1e3, estimate.offset_sigma * 1e3, run.offset_error * 1e3,
+      run.order_right ? "right" : "WRONG", 100.0 * estimate.order_confidence, period, written.c_str(),
+      message, run.corrected_mm, run.true_timing_mm, run.floor_mm, run.corrected_mm / run.floor_mm);
   return row;
 }
 

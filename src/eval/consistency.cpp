@@ -11,6 +11,7 @@
 #include <memory>
 #include <vector>
 
+#include "lidar_deskew/core/timing_fit.h"
 #include "lidar_deskew/eval/recorded_tf.h"
 #include "lidar_deskew/ros/bag_file.h"
 #include "lidar_deskew/ros/conversions.h"
@@ -54,20 +55,8 @@ ConsistencyReport measureConsistency(const std::string& bag_path, const std::str
     const auto mount = tf->mount(ros_adapter::normalizedFrame(scan.header.frame_id), error);
     if (!mount)
       throw std::runtime_error(bag_path + ": no laser mount: " + error);
-    const mrpt::poses::CPose3D laser = tf->motion().basePose(toNs(scan.header.stamp)) + *mount;
-    std::vector<Eigen::Vector2d> points;
-    const core::PlanarScan planar = ros_adapter::fromMsg(scan);
-    const core::ReturnTest is_return(planar);
-    for (std::size_t i = 0; i < scan.ranges.size(); ++i) {
-      if (!is_return(scan.ranges[i]))
-        continue;
-      const double angle = scan.angle_min + i * static_cast<double>(scan.angle_increment);
-      double x, y, z;
-      laser.composePoint(scan.ranges[i] * std::cos(angle), scan.ranges[i] * std::sin(angle), 0.0, x, y, z);
-      points.emplace_back(x, y);
-    }
-    return core::PlacedScan(toNs(scan.header.stamp), {laser.x(), laser.y()},
-                            std::abs(static_cast<double>(scan.angle_increment)), std::move(points));
+    const core::TimeNs stamp = toNs(scan.header.stamp);
+    return core::placeRaw(ros_adapter::fromMsg(scan), tf->motion().basePose(stamp) + *mount, stamp);
   };
   std::vector<core::PlacedScan> raw_placed, corrected_placed;
   std::vector<double> turn_rates;
@@ -77,7 +66,9 @@ ConsistencyReport measureConsistency(const std::string& bag_path, const std::str
       continue;  // not corrected (no tf)
     try {
       const core::TimeNs start = toNs(scan->header.stamp);
-      const double span = scan->scan_time > 0.0f ? scan->scan_time : 0.1;
+      // The turn over one revolution (the message's period; 0.1 s when it has none).
+      const double period = core::messagePeriod(ros_adapter::fromMsg(*scan));
+      const double span = period > 0.0 ? period : 0.1;
       const double turn = std::remainder(
           tf->motion().basePose(start + core::secondsToNs(span)).yaw() - tf->motion().basePose(start).yaw(),
           2.0 * M_PI);

@@ -11,7 +11,10 @@
 #include <cstdlib>
 #include <cstring>
 #include <exception>
+#include <map>
+#include <stdexcept>
 #include <string>
+#include <vector>
 
 #include "lidar_deskew/eval/cloud_evaluate.h"
 #include "lidar_deskew/eval/evaluate.h"
@@ -79,6 +82,7 @@ int main(int argc, char** argv) {
   bool markdown = false;
   eval::EvaluateOptions options;
   bool cloud = false;
+  std::string params_file;  // the scans' timing, as the node and deskew_bag read it (deskew_calibrate's)
   for (int a = 1; a < argc; ++a) {
     const std::string arg = argv[a];
     const bool has_value = a + 1 < argc;
@@ -95,10 +99,7 @@ int main(int argc, char** argv) {
     } else if (arg == "--figure-csv" && has_value) {
       options.figure_csv = argv[++a];
     } else if (arg == "--params" && has_value) {
-      // The scans' timing as the node and deskew_bag would read it (e.g. deskew_calibrate's file).
-      options.timing =
-          ros_adapter::DeskewParams::load(ros_adapter::TextParams(ros_adapter::readParamFile(argv[++a])))
-              .timing;
+      params_file = argv[++a];
     } else if (arg == "--figure-scan" && has_value) {
       options.figure_scan = static_cast<std::size_t>(std::strtoul(argv[++a], nullptr, 10));
     } else if (!arg.empty() && arg[0] != '-' && bag_path.empty()) {
@@ -112,6 +113,15 @@ int main(int argc, char** argv) {
   if (bag_path.empty() || truth_path.empty())
     return usage(argv[0]);
   try {
+    if (!params_file.empty()) {
+      const std::map<std::string, std::string> values = ros_adapter::readParamFile(params_file);
+      std::vector<std::string> names;
+      for (const auto& entry : values)
+        names.push_back(entry.first);
+      for (const std::string& unknown : ros_adapter::DeskewParams::unknownNames(names))
+        throw std::runtime_error(params_file + ": unknown parameter " + unknown);
+      options.timing = ros_adapter::DeskewParams::load(ros_adapter::TextParams(values)).timing;
+    }
     if (cloud)
       return cloudMetrics(bag_path, truth_path, markdown);
     const eval::Evaluation result = eval::evaluateBag(bag_path, truth_path, options);

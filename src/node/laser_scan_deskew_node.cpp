@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstdio>
 #include <ctime>
+#include <optional>
 #include <type_traits>
 
 #include "lidar_deskew/node/config_params.h"
@@ -347,6 +348,11 @@ void DeskewNode<Processor>::tfCallback(const tf2_msgs::TFMessage::ConstPtr& mess
   trigger_ = arrival;
   try {
     pipeline_.addTransforms(message->transforms, is_static, waitClock(arrival));
+    // A scan the timing check holds until tf covers every alternative timing.
+    if (timing_check_ && timing_check_->waiting() && check_cpu_ <= kTimingCheckBudget * callbacks_cpu_) {
+      const CpuSpent checking(check_cpu_);
+      timing_check_->tryPending(pipeline_.tf().motion());
+    }
   } catch (const std::exception& error) {  // never let an exception reach the manager
     ROS_ERROR_THROTTLE(1.0, "%s: error handling tf: %s", name_.c_str(), error.what());
   }
@@ -355,6 +361,7 @@ void DeskewNode<Processor>::tfCallback(const tf2_msgs::TFMessage::ConstPtr& mess
 template <class Processor>
 void DeskewNode<Processor>::timerCallback(const ros::WallTimerEvent& /*event*/) {
   bool diagnostics_due = false;
+  std::optional<bool> timing_known;  // whether the timing check has a verdict, when diagnostics are due
   {
     std::lock_guard<std::mutex> lock(mutex_);
     const CpuSpent spent(callbacks_cpu_);
@@ -376,16 +383,18 @@ void DeskewNode<Processor>::timerCallback(const ros::WallTimerEvent& /*event*/) 
       ROS_ERROR_THROTTLE(1.0, "%s: error processing %ss: %s", name_.c_str(), Processor::kNoun, error.what());
     }
     diagnostics_due = (now - last_diagnostics_).toSec() >= params_.diagnostics_period;
-    // The timing status appears once the robot has turned enough to tell, and goes when the check
-    // starts over (the timing parameters changed).
-    if (diagnostics_due && timing_check_) {
-      const bool known = timing_check_->verdict().state != core::TimingCheck::State::kUnknown;
-      if (known && !timing_reported_)
-        diagnostics_->add(name_ + ": timing", this, &DeskewNode::produceTimingDiagnostics);
-      else if (!known && timing_reported_)
-        diagnostics_->removeByName(name_ + ": timing");
-      timing_reported_ = known;
-    }
+    if (diagnostics_due && timing_check_)
+      timing_known = timing_check_->verdict().state != core::TimingCheck::State::kUnknown;
+  }
+  // The timing status appears once the robot has turned enough to tell, and goes when the check
+  // starts over (the timing parameters changed). Outside mutex_: the Updater holds its own lock while
+  // it calls the tasks, which take mutex_. Only this timer adds or removes the task.
+  if (timing_known && *timing_known != timing_reported_) {
+    if (*timing_known)
+      diagnostics_->add(name_ + ": timing", this, &DeskewNode::produceTimingDiagnostics);
+    else
+      diagnostics_->removeByName(name_ + ": timing");
+    timing_reported_ = *timing_known;
   }
   // On the wall clock: the Updater's own schedule is in ROS time, which stands still with a paused
   // bag and goes back when a bag loops (diagnostics then fell silent).
@@ -448,7 +457,11 @@ void DeskewNode<Processor>::checkTiming(const typename Processor::Prepared& prep
     if (!timing_check_ || check_cpu_ > kTimingCheckBudget * callbacks_cpu_)
       return;
     const CpuSpent spent(check_cpu_);
-    timing_check_->add(prepared.scan, mount, pipeline_.tf().motion());
+    try {
+      timing_check_->add(prepared.scan, mount, pipeline_.tf().motion());
+    } catch (const std::exception& error) {  // the scan is published already: only the check loses
+      ROS_ERROR_THROTTLE(10.0, "%s: timing check: %s", name_.c_str(), error.what());
+    }
   }
 }
 

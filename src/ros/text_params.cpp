@@ -70,7 +70,7 @@ std::map<std::string, std::string> readParamFile(const std::string& path) {
       return begin == std::string::npos ? std::string() : text.substr(begin, end - begin + 1);
     };
     const std::string text = trim(line);
-    if (text.empty() || text[0] == '#' || text == "---")
+    if (text.empty() || text[0] == '#' || text.rfind("---", 0) == 0 || text == "...")
       continue;
     if (line[0] == ' ' || line[0] == '\t' || text[0] == '-')
       fail("only flat 'name: value' lines are understood (no nesting, no lists)");
@@ -88,7 +88,12 @@ std::map<std::string, std::string> readParamFile(const std::string& path) {
         fail("text after the quoted value");
       value = value.substr(1, close - 1);
     } else {
-      const std::size_t comment = value.find(" #");
+      // A comment: '#' at the start or after a blank.
+      std::size_t comment = value[0] == '#' ? 0 : std::string::npos;
+      for (std::size_t i = 1; i < value.size() && comment == std::string::npos; ++i) {
+        if (value[i] == '#' && (value[i - 1] == ' ' || value[i - 1] == '\t'))
+          comment = i;
+      }
       value = trim(value.substr(0, comment));
       if (value.empty() || value[0] == '{' || value[0] == '[' || value[0] == '|' || value[0] == '>')
         fail("only flat 'name: value' lines are understood (no nesting, no lists)");

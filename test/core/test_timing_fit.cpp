@@ -188,5 +188,57 @@ TEST(TimingFit, TooLittleTurningSaysSoAndHowMuchIsNeeded) {
   EXPECT_NE(found.why.find("at least 10 turning scans"), std::string::npos) << found.why;
 }
 
+/// The live check fed as the node feeds it: each scan once tf covers its last beam under the
+/// configured timing, tf arriving in 20 ms samples, the waiting scan retried as tf comes.
+TimingCheck::Verdict checkLive(const Drive& drive, const Recording& recording,
+                               const TimingConfig& configured) {
+  TimingCheck check(configured);
+  PoseSamples tf;
+  double tf_until = -1.0;
+  const auto tfUntil = [&](double t) {
+    for (; tf_until <= t; tf_until += 0.02) {
+      const sim::Pose2 pose = drive.trajectory.pose(tf_until);
+      tf.add(kEpoch + secondsToNs(tf_until), mrpt::poses::CPose2D(pose.x, pose.y, pose.yaw));
+    }
+  };
+  for (const PlanarScan& scan : recording.scans) {
+    const BeamTiming beams = resolveTiming(scan, configured);
+    tfUntil(nsToSeconds(beams.latestBeamTime() - kEpoch));  // the node corrects it now
+    check.add(scan, recording.mount, tf);
+    for (int k = 0; k < 10 && check.waiting(); ++k) {  // later tf messages
+      tfUntil(tf_until + 0.02);
+      check.tryPending(tf);
+    }
+  }
+  return check.verdict();
+}
+
+TEST(TimingCheck, NamesTheBetterTimingOrSaysItFits) {
+  Drive drive;
+  drive.duration = 10.0;
+  const double sweep = 359.0 / 360.0 / drive.lidar.rate;
+  const Recording at_end = record(drive, sweep, false, 1.0);
+  // Configured as ROS says, the scans stamped at the end: a better timing named.
+  const TimingCheck::Verdict wrong = checkLive(drive, at_end, TimingConfig());
+  EXPECT_EQ(wrong.state, TimingCheck::State::kBetter) << wrong.message;
+  EXPECT_EQ(wrong.best_name, "stamp_at: end");
+  EXPECT_GE(wrong.pairs, 20u);
+  EXPECT_LT(wrong.best, 0.8 * wrong.configured) << wrong.message;  // 60 mm range noise sets a floor
+  // Configured stamp_at: end, which needs tf a sweep past the last beam for its "start" alternative:
+  // the scans wait for it, and the timing fits.
+  TimingConfig end;
+  end.stamp_at = StampAt::kEnd;
+  const TimingCheck::Verdict right = checkLive(drive, at_end, end);
+  EXPECT_EQ(right.state, TimingCheck::State::kFits) << right.message;
+  EXPECT_GE(right.pairs, 20u);
+  EXPECT_GT(right.best, right.configured);
+  // A base that never turns: no verdict.
+  Drive straight;
+  straight.trajectory = sim::PiecewiseTrajectory(sim::Pose2{-6.0, 0.0, 0.0}, {{10.0, 0.8, 0.0, 0.0}});
+  const TimingCheck::Verdict none = checkLive(straight, record(straight, 0.0, false, 1.0), TimingConfig());
+  EXPECT_EQ(none.state, TimingCheck::State::kUnknown);
+  EXPECT_EQ(none.pairs, 0u);
+}
+
 }  // namespace
 }  // namespace lidar_deskew::core

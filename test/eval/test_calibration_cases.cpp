@@ -39,8 +39,9 @@ TEST_P(CalibrationCases, EstimateMeetsTheTargets) {
     EXPECT_FALSE(estimate.period_estimated);
   }
   // A period was estimated exactly when the message's was missing or wrong.
-  const bool period_wrong = recording.timing_fault.time_increment_factor != 1.0 &&
-                            (recording.timing_fault.time_increment_factor != 0.0 || recording.timing_fault.zero_scan_time);
+  const bool period_wrong =
+      recording.timing_fault.time_increment_factor != 1.0 &&
+      (recording.timing_fault.time_increment_factor != 0.0 || recording.timing_fault.zero_scan_time);
   EXPECT_EQ(estimate.period_estimated, period_wrong);
   if (period_wrong) {
     EXPECT_NEAR(estimate.period, run.calibration.stamp_period, 1e-9);

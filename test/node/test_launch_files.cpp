@@ -24,13 +24,16 @@ TEST(LaunchFiles, TwoInstancesPublishOnOutputsNamedAfterTheirInputs) {
   const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(20.0);
   while (ros::WallTime::now() < end) {
     topics = advertisedTopics();
-    if (topics.count("/rear_scan_deskewed_points") && topics.count("/front_scan_deskewed_points"))
+    if (topics.count("/rear_scan_deskewed_points") && topics.count("/front_scan_deskewed_points") &&
+        topics.count("/stable_scan_deskewed_points"))
       break;
     ros::WallDuration(0.1).sleep();
   }
   EXPECT_EQ(topics["/front_scan_deskewed"], "sensor_msgs/LaserScan");
   EXPECT_EQ(topics["/front_scan_deskewed_points"], "sensor_msgs/PointCloud2");
   EXPECT_EQ(topics["/rear_scan_deskewed"], "sensor_msgs/LaserScan");
+  // The node with deskew_calibrate's file started (a bad value would have stopped it first).
+  EXPECT_EQ(topics["/stable_scan_deskewed"], "sensor_msgs/LaserScan");
   EXPECT_EQ(topics["/rear_scan_deskewed_points"], "sensor_msgs/PointCloud2");
   EXPECT_EQ(topics.count("/scan_deskewed"), 0u);
 }
@@ -43,8 +46,15 @@ TEST(LaunchFiles, ParamsFileWinsOverDefaultsAndArgumentsWinOverTheFile) {
   ASSERT_TRUE(ros::param::get("/front_deskew/stamp_at", value));
   EXPECT_EQ(value, "end");
   ASSERT_TRUE(ros::param::get("/front_deskew/reference", value));
-  EXPECT_EQ(value, "middle");  // the argument, over the file's "start"
+  EXPECT_EQ(value, "middle");                                  // the argument, over the file's "start"
   EXPECT_FALSE(ros::param::has("/front_deskew/fixed_frame"));  // neither given: the node's default
+  // neato_deskew: deskew_calibrate's file; the node took it (it advertised its outputs).
+  double offset = 0.0;
+  ASSERT_TRUE(ros::param::get("/neato_deskew/time_offset", offset));
+  EXPECT_LT(offset, -0.05);  // the Neato's first beam lies about 0.1 s before its stamp
+  EXPECT_GT(offset, -0.2);
+  ASSERT_TRUE(ros::param::get("/neato_deskew/beam_order", value));
+  EXPECT_EQ(value, "as_message");
   // rear_deskew: the default file, stamp_at:=end on the command line.
   ASSERT_TRUE(ros::param::get("/rear_deskew/stamp_at", value));
   EXPECT_EQ(value, "end");

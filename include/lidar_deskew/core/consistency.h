@@ -2,6 +2,7 @@
 // correction, or of a timing, that needs no ground truth (docs/CALIBRATION.md). ROS-free.
 #pragma once
 
+#include <mrpt/poses/CPose3D.h>
 #include <Eigen/Core>
 
 #include <cstddef>
@@ -9,6 +10,8 @@
 #include <utility>
 #include <vector>
 
+#include "lidar_deskew/core/deskew.h"
+#include "lidar_deskew/core/scan.h"
 #include "lidar_deskew/core/types.h"
 
 namespace lidar_deskew::core {
@@ -48,6 +51,20 @@ class PlacedScan {
   std::vector<std::uint32_t> bin_begin_;  // points of bin b: by_bin_[bin_begin_[b] .. bin_begin_[b+1])
   std::vector<std::uint32_t> by_bin_;
 };
+
+/// A corrected scan placed with `laser`, the laser's pose in the fixed frame at its reference time;
+/// every `stride`-th return kept (the contour's join distance grows with it). `bearing_step` [rad] the
+/// scan's |angle_increment|.
+PlacedScan placeCorrected(const DeskewedScan& corrected, const mrpt::poses::CPose3D& laser,
+                          double bearing_step, std::size_t stride = 1);
+/// A raw scan placed with `laser`, the laser's pose at `time` [ns]: every return drawn as if measured
+/// then (what a consumer that does not deskew sees).
+PlacedScan placeRaw(const PlanarScan& scan, const mrpt::poses::CPose3D& laser, TimeNs time);
+
+/// The k-th of `count` indices spread evenly over [0, size), nearest first: 0, ..., size - 1.
+inline std::size_t spreadIndex(std::size_t k, std::size_t count, std::size_t size) {
+  return count <= 1 ? 0 : k * (size - 1) / (count - 1);
+}
 
 /// The measure's constants.
 struct ConsistencyConfig {

@@ -6,6 +6,7 @@
 #include <mrpt/poses/CPose3D.h>
 
 #include <cstddef>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -24,6 +25,8 @@ struct TimingFitConfig {
   double turning_rate = 0.3;
   /// scans that must turn for the timing to be told at all
   std::size_t min_turning_scans = 10;
+  /// overlapping pairs with a turning scan, likewise
+  std::size_t min_turning_pairs = 20;
   /// [s] the offset estimate's resolution: the fine search's step is at most 5 x this (a parabola
   /// through the best three refines it)
   double resolution = 0.0001;
@@ -33,7 +36,7 @@ struct TimingFitConfig {
   double snap = 0.0005;
   /// largest one-standard-deviation uncertainty of the offset, as a share of the sweep period, for an
   /// estimate to be trusted (otherwise: too little turning)
-  double max_uncertainty_share = 0.05;
+  double max_uncertainty_share = 0.1;
   std::size_t resamples = 200;  ///< bootstrap resamples for the uncertainties
   unsigned seed = 1;
 };
@@ -104,8 +107,9 @@ struct TimingEstimate {
   double period_sigma = 0.0;      ///< [s] when estimated; 0 when the message's was kept
   bool period_estimated = false;  ///< the message's period was 0 or disagreed with the data
   double message_period = 0.0;    ///< [s] the message's own (time_increment, else scan_time); 0 = none
+  double sweep = 0.0;             ///< [s] first to last beam under `period` (when told)
   bool changed = false;           ///< differs from the message's own timing
-  std::size_t scans = 0, pairs = 0, turning_scans = 0;
+  std::size_t scans = 0, pairs = 0, turning_scans = 0, turning_pairs = 0;
   double fastest_turn = 0.0;  ///< [rad/s]
   ConsistencySummary raw;     ///< every beam at the stamp
   ConsistencySummary before;  ///< corrected with the message's timing (as the node does by default)
@@ -122,10 +126,10 @@ TimingEstimate estimateTiming(const TimingFit& fit, const TimingFitConfig& confi
 /// under the configured timing and a few alternatives (stamp_at flipped, beam_order flipped, both, the
 /// stamp in the middle of the sweep) and compared with up to `partners` scans given before it within
 /// `history`; pairs in which either scan turns count towards a running consistency per timing. A scan
-/// is thinned to `beams` beams first (the same sweep at a coarser step): a check costs ~0.1 ms.
+/// keeps `beams` of its corrected returns (every k-th): a check costs about 0.1-0.3 ms.
 struct TimingCheckConfig {
   ConsistencyConfig consistency{0.5, 0.1, 0.5, 90};  ///< fewer points per pair than offline
-  std::size_t beams = 90;  ///< every k-th beam of a scan, at most this many, is corrected and compared
+  std::size_t beams = 90;  ///< every k-th return of a corrected scan, at most this many, is compared
   double history = 30.0;   ///< [s] earlier scans kept as partners (checked scans come seconds apart)
   std::size_t partners = 4;
   double turning_rate = 0.3;   ///< [rad/s] a pair counts when either scan turns this fast
@@ -153,9 +157,13 @@ class TimingCheck {
   explicit TimingCheck(const TimingConfig& configured, const TimingCheckConfig& config = TimingCheckConfig());
   /// Starts over with `configured` (the parameters changed, or time jumped).
   void reset(const TimingConfig& configured);
-  /// Adds one scan (corrected under the configured timing already, so `motion` covers it). Scans the
-  /// motion does not cover under some alternative are left out. Returns true when it was used.
+  /// Adds one scan (corrected under the configured timing already). It is used once `motion` covers
+  /// it under every alternative (stamp_at flipped from end to start reaches a sweep past the last beam):
+  /// now, or at a later add() or tryPending() while it is the newest. Returns true when a scan was used.
   bool add(const PlanarScan& scan, const mrpt::poses::CPose3D& mount, const MotionSource& motion);
+  /// Uses the waiting scan if `motion` now covers it (call when tf arrives). Returns true when used.
+  bool tryPending(const MotionSource& motion);
+  bool waiting() const { return pending_.has_value(); }
   Verdict verdict() const;
   /// Scans used so far (since the last reset).
   std::size_t scans() const { return scans_; }
@@ -170,6 +178,11 @@ class TimingCheck {
   std::vector<std::pair<std::string, TimingConfig>> timings_;  // configured first; built per scan
   TimingConfig configured_;
   std::vector<Entry> history_;
+  struct Pending {
+    PlanarScan scan;
+    mrpt::poses::CPose3D mount;
+  };
+  std::optional<Pending> pending_;
   std::vector<double> sums_;       // [m] per timing
   std::vector<std::size_t> wins_;  // pairs in which the timing beat the configured one
   std::size_t pairs_ = 0;
