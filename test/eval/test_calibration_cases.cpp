@@ -48,10 +48,10 @@ TEST_P(CalibrationCases, EstimateMeetsTheTargets) {
   }
 }
 
-// none (ILD26TRI), stamped at the end (LDS-01), 25 ms early (ILD26TRI), 45 ms early (LDS-01), reversed
-// (LDS-01), reversed and at the end (LDS-01 high), no period (ILD26TRI high), time_increment x 0.5
-// (ILD26TRI), the LDS-01 driver's three faults at once.
-INSTANTIATE_TEST_SUITE_P(CheapSensors, CalibrationCases, testing::Values(0, 2, 6, 10, 11, 14, 16, 19, 22));
+// none (ILD26TRI), stamped at the end (LDS-01), 25 ms early (ILD26TRI), reversed (LDS-01), no period
+// (ILD26TRI high), the LDS-01 driver's three faults at once (reversed, at the end, time_increment x
+// 0.054). scripts/calibration_experiments.sh runs all 24.
+INSTANTIATE_TEST_SUITE_P(CheapSensors, CalibrationCases, testing::Values(0, 2, 6, 11, 16, 22));
 
 }  // namespace
 }  // namespace lidar_deskew::eval

@@ -80,11 +80,12 @@ TEST(TimingCheck, ReportsWhetherTheTimingFits) {
     EXPECT_NE(message.find("timing fits"), std::string::npos) << message;
   }
   EXPECT_GE(rig.diagnosticNumber("pairs while turning"), 20.0);
-  // Within its budget: at most 5 % of the node's own CPU (one check's worth of slack).
+  // Within its budget: 5 % of the CPU time of the node's callbacks (a part of the node's CPU), a check
+  // taken only when one costing what the last did still fits (checks vary: a tenth of a point of slack).
   const double share = rig.diagnosticNumber("check CPU share [%]");
   std::printf("check CPU share %.2f %% of the node's callbacks\n", share);
   EXPECT_GT(share, 0.0);
-  EXPECT_LE(share, 6.0);
+  EXPECT_LE(share, 5.1);
 }
 
 }  // namespace

@@ -80,6 +80,8 @@ class DeskewNode {
   void report(ros_adapter::PipelineEvent event, const std::string& text);
   void produceDiagnostics(diagnostic_updater::DiagnosticStatusWrapper& status);
   void produceTimingDiagnostics(diagnostic_updater::DiagnosticStatusWrapper& status);
+  /// Whether one more timing check, costing what the last did, stays within 5 % of the callbacks' CPU.
+  bool timingCheckAffordable() const;
   /// Feeds the timing check with a corrected sweep when its CPU budget allows (scans only).
   void checkTiming(const typename Processor::Prepared& prepared, const mrpt::poses::CPose3D& mount);
   double latencyP99Locked() const;
@@ -115,6 +117,7 @@ class DeskewNode {
   std::unique_ptr<core::TimingCheck> timing_check_;
   double callbacks_cpu_ = 0.0;    // [s] thread CPU time in the node's callbacks, the check's included
   double check_cpu_ = 0.0;        // [s] of it in the timing check
+  double last_check_cpu_ = 0.0;   // [s] the last check's
   bool timing_reported_ = false;  // the timing status is on /diagnostics (the timer's alone)
   std::unique_ptr<Reconfigure> reconfigure_;
 };
