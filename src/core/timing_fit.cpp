@@ -428,21 +428,25 @@ void TimingCheck::reset(const TimingConfig& configured) {
   pairs_ = 0;
   scans_ = 0;
   timings_.clear();
-  pending_.reset();
+  pending_.clear();
 }
 
 bool TimingCheck::add(const PlanarScan& scan, const mrpt::poses::CPose3D& mount, const MotionSource& motion) {
-  // A scan waits here until the motion covers every alternative (with stamp_at end configured, the
-  // "start" one reaches a sweep past the last beam, which tf brings later); a newer scan replaces it.
-  pending_ = Pending{scan, mount};
+  // Scans wait here, in order, until the motion covers every alternative (with stamp_at end configured,
+  // the "start" one reaches a sweep past the last beam, which tf brings later). A new scan may come with
+  // the very tf that completes the one before it: it queues behind it, and the oldest of more than
+  // three is dropped.
+  pending_.push_back(Pending{scan, mount});
+  if (pending_.size() > 3)
+    pending_.pop_front();
   return tryPending(motion);
 }
 
 bool TimingCheck::tryPending(const MotionSource& motion) {
-  if (!pending_)
+  if (pending_.empty())
     return false;
-  const PlanarScan& scan = pending_->scan;
-  const mrpt::poses::CPose3D& mount = pending_->mount;
+  const PlanarScan& scan = pending_.front().scan;
+  const mrpt::poses::CPose3D& mount = pending_.front().mount;
   // The configured timing and its alternatives for this scan.
   std::vector<std::pair<std::string, TimingConfig>> timings;
   Entry entry;
@@ -491,12 +495,16 @@ bool TimingCheck::tryPending(const MotionSource& motion) {
                                             std::abs(static_cast<double>(scan.angle_increment)), stride));
     }
   } catch (const MotionUnavailable&) {
-    return false;  // not yet covered: it waits for the next call (or a newer scan)
+    // Not yet covered: it waits for later tf, unless a newer scan behind it already is (then tf will
+    // never cover it: it is left out).
+    if (pending_.size() > 1 && pending_.back().scan.stamp - scan.stamp > secondsToNs(1.0))
+      pending_.pop_front();
+    return false;
   } catch (const InvalidInput&) {
-    pending_.reset();
+    pending_.pop_front();
     return false;
   }
-  pending_.reset();
+  pending_.pop_front();
   timings_ = std::move(timings);
   ++scans_;
   // Partners: spread over the history, the newest first.

@@ -6,7 +6,7 @@
 #include <mrpt/poses/CPose3D.h>
 
 #include <cstddef>
-#include <optional>
+#include <deque>
 #include <string>
 #include <utility>
 #include <vector>
@@ -157,13 +157,14 @@ class TimingCheck {
   explicit TimingCheck(const TimingConfig& configured, const TimingCheckConfig& config = TimingCheckConfig());
   /// Starts over with `configured` (the parameters changed, or time jumped).
   void reset(const TimingConfig& configured);
-  /// Adds one scan (corrected under the configured timing already). It is used once `motion` covers
-  /// it under every alternative (stamp_at flipped from end to start reaches a sweep past the last beam):
-  /// now, or at a later add() or tryPending() while it is the newest. Returns true when a scan was used.
+  /// Adds one scan (corrected under the configured timing already). Scans are used in order, each once
+  /// `motion` covers it under every alternative (stamp_at flipped from end to start reaches a sweep past
+  /// the last beam): now, or at a later add() or tryPending(); at most 3 wait. Returns true when a scan
+  /// was used (at most one per call).
   bool add(const PlanarScan& scan, const mrpt::poses::CPose3D& mount, const MotionSource& motion);
   /// Uses the waiting scan if `motion` now covers it (call when tf arrives). Returns true when used.
   bool tryPending(const MotionSource& motion);
-  bool waiting() const { return pending_.has_value(); }
+  bool waiting() const { return !pending_.empty(); }
   Verdict verdict() const;
   /// Scans used so far (since the last reset).
   std::size_t scans() const { return scans_; }
@@ -182,7 +183,7 @@ class TimingCheck {
     PlanarScan scan;
     mrpt::poses::CPose3D mount;
   };
-  std::optional<Pending> pending_;
+  std::deque<Pending> pending_;    // oldest first, at most 3
   std::vector<double> sums_;       // [m] per timing
   std::vector<std::size_t> wins_;  // pairs in which the timing beat the configured one
   std::size_t pairs_ = 0;
