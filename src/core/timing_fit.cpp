@@ -96,6 +96,11 @@ std::string formatSeconds(double seconds) {
 
 }  // namespace
 
+double turnRate(const MotionSource& motion, TimeNs begin, TimeNs end) {
+  return std::remainder(motion.basePose(end).yaw() - motion.basePose(begin).yaw(), kTwoPi) /
+         nsToSeconds(end - begin);
+}
+
 double messagePeriod(const PlanarScan& scan) {
   const double share = std::abs(static_cast<double>(scan.angle_increment)) / kTwoPi;
   if (scan.time_increment != 0.0f && share > 0.0)
@@ -152,7 +157,7 @@ TimingFit::TimingFit(std::vector<PlanarScan> scans, const mrpt::poses::CPose3D& 
       const mrpt::poses::CPose3D end = motion.basePose(scan.stamp + period);
       (void)motion.basePose(scan.stamp + margin + period);
       ScanMotion moved;
-      moved.turn_rate = std::remainder(end.yaw() - start.yaw(), kTwoPi) / nominal_period_;
+      moved.turn_rate = std::remainder(end.yaw() - start.yaw(), kTwoPi) / nominal_period_;  // (poses at hand)
       moved.speed = std::hypot(end.x() - start.x(), end.y() - start.y()) / nominal_period_;
       motions_.push_back(moved);
       scans_.push_back(std::move(scan));
@@ -357,13 +362,7 @@ TimingEstimate estimateTiming(const TimingFit& fit, const TimingFitConfig& confi
     estimate.why = "too few pairs to tell the timing";
     return estimate;
   }
-  double sum = 0.0, squares = 0.0;
-  for (double offset : offsets)
-    sum += offset;
-  const double mean = sum / offsets.size();
-  for (double offset : offsets)
-    squares += (offset - mean) * (offset - mean);
-  estimate.offset_sigma = std::sqrt(squares / std::max<std::size_t>(1, offsets.size() - 1));
+  estimate.offset_sigma = summarize(offsets).spread;
   estimate.order_confidence = static_cast<double>(order_held) / offsets.size();
   estimate.time_offset = best->offset;
   estimate.period = best->period;
@@ -478,19 +477,18 @@ bool TimingCheck::tryPending(const MotionSource& motion) {
                {stamp_name + ", " + order_name, flipOrder(flipStamp(configured_))},
                {offset_name, middle}};
     // Covered under every timing? (One lookup at each end, before any correction.)
+    std::vector<BeamTiming> resolved;
     for (const auto& named : timings) {
-      const BeamTiming resolved = resolveTiming(scan, named.second);
-      (void)motion.basePose(resolved.earliestBeamTime());
-      (void)motion.basePose(resolved.latestBeamTime());
+      resolved.push_back(resolveTiming(scan, named.second));
+      (void)motion.basePose(resolved.back().earliestBeamTime());
+      (void)motion.basePose(resolved.back().latestBeamTime());
     }
-    entry.turn_rate =
-        std::abs(std::remainder(motion.basePose(end).yaw() - motion.basePose(begin).yaw(), 2.0 * M_PI)) /
-        sweep;
+    entry.turn_rate = std::abs(turnRate(motion, begin, end));
     // Every return corrected, every k-th placed: at most config_.beams a scan.
     const std::size_t stride = std::max<std::size_t>(
         1, (scan.ranges.size() + config_.beams - 1) / std::max<std::size_t>(1, config_.beams));
-    for (const auto& named : timings) {
-      deskewer_.deskew(scan, resolveTiming(scan, named.second), mount, motion, corrected_);
+    for (const BeamTiming& beams_of_timing : resolved) {
+      deskewer_.deskew(scan, beams_of_timing, mount, motion, corrected_);
       entry.placed.push_back(placeCorrected(corrected_, motion.basePose(corrected_.reference_time) + mount,
                                             std::abs(static_cast<double>(scan.angle_increment)), stride));
     }

@@ -69,14 +69,12 @@ ConsistencyReport measureConsistency(const std::string& bag_path, const std::str
       // The turn over one revolution (the message's period; 0.1 s when it has none).
       const double period = core::messagePeriod(ros_adapter::fromMsg(*scan));
       const double span = period > 0.0 ? period : 0.1;
-      const double turn = std::remainder(
-          tf->motion().basePose(start + core::secondsToNs(span)).yaw() - tf->motion().basePose(start).yaw(),
-          2.0 * M_PI);
+      const double turn_rate = core::turnRate(tf->motion(), start, start + core::secondsToNs(span));
       core::PlacedScan placed_raw = place(*scan);
       core::PlacedScan placed_corrected = place(*match->second);
       raw_placed.push_back(std::move(placed_raw));
       corrected_placed.push_back(std::move(placed_corrected));
-      turn_rates.push_back(std::abs(turn) / span);
+      turn_rates.push_back(std::abs(turn_rate));
     } catch (const core::MotionUnavailable&) {
       continue;  // tf does not cover this scan
     }

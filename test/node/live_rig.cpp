@@ -54,6 +54,12 @@ void LiveRig::subscribeOutputs() {
       });
 }
 
+bool testFlag(const std::string& name) {
+  bool value = false;
+  ros::NodeHandle("~").getParam(name, value);
+  return value;
+}
+
 bool LiveRig::status(const std::string& suffix, int& level, std::string& message) const {
   for (const auto& [name, status] : statuses_) {
     if (name.size() >= suffix.size() &&

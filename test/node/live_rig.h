@@ -100,6 +100,9 @@ class LiveRig {
   std::size_t diagnostics_received_ = 0;
 };
 
+/// The test node's private boolean parameter `name` (a rostest <param>); false when not set.
+bool testFlag(const std::string& name);
+
 /// Distances [m] of the corrected cloud's points, and of the corrected scan's beam endpoints, to the
 /// true walls, placed with the laser's true pose at the output stamp (the reference time).
 std::vector<double> cloudDistances(const LiveRig& rig, const sensor_msgs::PointCloud2& cloud);

@@ -9,13 +9,8 @@
 namespace lidar_deskew::test {
 namespace {
 
-bool flag(const std::string& name) {
-  bool value = false;
-  ros::NodeHandle("~").getParam(name, value);
-  return value;
-}
 bool expectPassThrough() {
-  return flag("expect_pass_through");
+  return testFlag("expect_pass_through");
 }
 
 constexpr double kScanPeriod = 1.0 / 40.0;
@@ -127,7 +122,7 @@ TEST(LiveDeskew, ExtrapolatesOnlyWhenAllowedAndOnlyOnceTheWaitIsOver) {
   sensor_msgs::LaserScan::ConstPtr scan;
   sensor_msgs::PointCloud2::ConstPtr cloud;
   EXPECT_FALSE(rig.waitForOutputs(rig.stampOf(start), 0.1, scan, cloud));  // tf_timeout is 0.2 or 0.5 s
-  if (flag("expect_extrapolation")) {
+  if (testFlag("expect_extrapolation")) {
     // tf never comes: extrapolated once the wait is over.
     ASSERT_TRUE(rig.waitForOutputs(rig.stampOf(start), 1.5, scan, cloud));
     // 5 ms of constant-velocity extrapolation on a 6 m/s, 5 rad/s arc: millimetres at most.

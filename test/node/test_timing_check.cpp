@@ -14,12 +14,6 @@
 namespace lidar_deskew::test {
 namespace {
 
-bool flag(const std::string& name) {
-  bool value = false;
-  ros::NodeHandle("~").getParam(name, value);
-  return value;
-}
-
 /// Turns that start and stop, both ways, with some driving; or (turning = false) a slow straight drive.
 std::vector<sim::MotionPiece> drive(bool turning) {
   if (!turning)
@@ -35,9 +29,9 @@ std::vector<sim::MotionPiece> drive(bool turning) {
 }
 
 TEST(TimingCheck, ReportsWhetherTheTimingFits) {
-  const bool turning = !flag("still");
-  const bool at_end = flag("stamped_at_end");
-  const bool configured_end = flag("configured_end");
+  const bool turning = !testFlag("still");
+  const bool at_end = testFlag("stamped_at_end");
+  const bool configured_end = testFlag("configured_end");
   LiveRig rig(sim::LidarModel::ild26tri(), "", drive(turning));
   ASSERT_TRUE(rig.connect());
   const double period = 1.0 / rig.model.rate;

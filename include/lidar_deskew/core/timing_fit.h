@@ -192,6 +192,10 @@ class TimingCheck {
   DeskewedScan corrected_;
 };
 
+/// [rad/s] The base's signed yaw change from `begin` to `end` [ns] (end > begin) over that time, on
+/// the shorter way round. Throws MotionUnavailable where `motion` does not cover either end.
+double turnRate(const MotionSource& motion, TimeNs begin, TimeNs end);
+
 /// The revolution period the message's fields give for `scan`: |time_increment| x 2pi / |angle
 /// increment|, else scan_time, else 0.
 double messagePeriod(const PlanarScan& scan);
