@@ -282,7 +282,22 @@ void KnotTrajectory::correctPlanarScan(const PlanarScan& scan, double beam_perio
 
 // ---------------------------------------------------------------------------------------------------
 
+Interpolation parseInterpolation(const std::string& text) {
+  if (text == "linear")
+    return Interpolation::kLinear;
+  if (text == "twist")
+    return Interpolation::kTwist;
+  throw InvalidInput("interpolation", "must be linear or twist, got '" + text + "'");
+}
+
+const char* interpolationName(Interpolation interpolation) {
+  return interpolation == Interpolation::kLinear ? "linear" : "twist";
+}
+
 void DeskewConfig::validate() const {
+  if (!std::isfinite(smoothing_window) || smoothing_window < 0.0 || smoothing_window > 10.0) {
+    throw InvalidInput("smoothing_window", "must be in [0, 10] s, got " + std::to_string(smoothing_window));
+  }
   if (!std::isfinite(knot_interval) || knot_interval < 0.0 ||
       (knot_interval > 0.0 && (knot_interval < kMinKnotInterval || knot_interval > kMaxKnotInterval))) {
     throw InvalidInput("knot_interval", "must be 0 (exact) or in [" + std::to_string(kMinKnotInterval) +
@@ -308,8 +323,13 @@ Eigen::Vector3d deskewPointExact(const Eigen::Vector3d& raw, TimeNs point_time, 
   return ExactChain(reference_time, mount, motion).apply(point_time, raw);
 }
 
-ScanDeskewer::ScanDeskewer(const DeskewConfig& config) : config_(config) {
-  config_.validate();
+ScanDeskewer::ScanDeskewer(const DeskewConfig& config)
+    : config_((config.validate(), config)), twist_(config.smoothing_window) {}
+
+const MotionSource& ScanDeskewer::motionFor(const MotionSource& motion, TimeNs begin, TimeNs end) {
+  if (config_.interpolation == Interpolation::kLinear)
+    return motion;
+  return twist_.prepare(motion, begin, end);
 }
 
 void ScanDeskewer::updateBeamDirections(const PlanarScan& scan) {
@@ -357,6 +377,10 @@ void ScanDeskewer::correctScan(const PlanarScan& scan, const BeamTiming& timing,
   }
   updateBeamDirections(scan);
   const double reference_offset = nsToSeconds(out.reference_time - timing.first_beam_time);
+  const double last_offset = timing.beamOffset(count - 1);
+  const double span_begin = std::min(0.0, last_offset), span_end = std::max(0.0, last_offset);
+  const MotionSource& source = motionFor(motion, timing.first_beam_time + secondsToNs(span_begin),
+                                         timing.first_beam_time + secondsToNs(span_end));
 
   // Beam by beam, for the exact mode and for non-planar motion: correct(i, raw point) per return.
   const auto correctEachReturn = [&](auto&& correct) {
@@ -372,15 +396,14 @@ void ScanDeskewer::correctScan(const PlanarScan& scan, const BeamTiming& timing,
   };
 
   if (config_.knot_interval == 0.0) {
-    const ExactChain chain(out.reference_time, mount, motion);
+    const ExactChain chain(out.reference_time, mount, source);
     correctEachReturn(
         [&](std::size_t i, const Eigen::Vector3d& raw) { return chain.apply(timing.beamTime(i), raw); });
     return;
   }
 
-  const double last_offset = timing.beamOffset(count - 1);
-  trajectory_.build(timing.first_beam_time, std::min(0.0, last_offset), std::max(0.0, last_offset),
-                    out.reference_time, config_.knot_interval, mount, motion);
+  trajectory_.build(timing.first_beam_time, span_begin, span_end, out.reference_time, config_.knot_interval,
+                    mount, source);
   if (trajectory_.planar()) {
     trajectory_.correctPlanarScan(scan, timing.beam_period, beam_directions_, reference_offset, out);
     return;
@@ -463,6 +486,8 @@ TimeNs ScanDeskewer::correctFirings(const std::vector<Eigen::Vector3d>& points, 
                                   : config_.reference == Reference::kEnd ? latest
                                                                          : 0.5 * (earliest + latest);
   const TimeNs reference_time = origin + secondsToNs(reference_offset);
+  const MotionSource& source =
+      motionFor(motion, origin + secondsToNs(earliest), origin + secondsToNs(latest));
   corrected.resize(points.size());
   const Eigen::Vector3d* const in = points.data();
   Eigen::Vector3d* const out = corrected.data();
@@ -470,7 +495,7 @@ TimeNs ScanDeskewer::correctFirings(const std::vector<Eigen::Vector3d>& points, 
   const double* const offsets = firings.offsets.data();
 
   if (config_.knot_interval == 0.0) {
-    const ExactChain chain(reference_time, mount, motion);
+    const ExactChain chain(reference_time, mount, source);
     for (std::size_t i = 0; i < points.size(); ++i) {
       if (firing_of[i] >= count)
         throw beyondTheFirings(count);
@@ -478,7 +503,7 @@ TimeNs ScanDeskewer::correctFirings(const std::vector<Eigen::Vector3d>& points, 
     }
     return reference_time;
   }
-  trajectory_.build(origin, earliest, latest, reference_time, config_.knot_interval, mount, motion);
+  trajectory_.build(origin, earliest, latest, reference_time, config_.knot_interval, mount, source);
   // The points of one firing share one affine map, built once.
   firing_maps_.resize(count);
   for (std::size_t f = 0; f < count; ++f)
