@@ -31,7 +31,7 @@ int usage(const char* program) {
       "       %s --cloud-scenario NAME --convention NAME --bag OUT.bag --truth OUT.truth [--noise]\n"
       "          [--seed N] [--tf-rate HZ] [--duration S] [--latency S]\n"
       "  --list              the planar scenarios (LaserScan on /scan): the paper's, then calibration's\n"
-      "  --list-paper        the paper's 19 (docs/RESULTS.md)\n"
+      "  --list-paper        the paper's 19, then 5 LDS-01 ones in a small room (docs/RESULTS.md)\n"
       "  --list-calibration  the turns drives for timing calibration (SENSOR/normal|high/turns)\n"
       "  --list-clouds       the multi-line scenarios (PointCloud2 on /points, frame lidar)\n"
       "  --list-conventions  the drivers' cloud layouts for --convention\n"

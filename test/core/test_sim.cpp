@@ -1,6 +1,7 @@
 // The simulator's own truth: closed-form motion against numerical integration, the truth file.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -56,17 +57,63 @@ TEST(Sim, PiecewiseMotionIsContinuousAndFollowsItsPieces) {
 
 TEST(Sim, PaperScenariosAreAllThere) {
   const auto scenarios = paperScenarios();
-  EXPECT_EQ(scenarios.size(), 19u);  // 3 sensors x 3 motions x 2 speeds + varying
+  // 3 sensors x 3 motions x 2 speeds + varying, then the LDS-01's five
+  ASSERT_EQ(scenarios.size(), 24u);
   EXPECT_EQ(findScenario("ILD26TRI/high/arc").lidar.beams, 360);
   EXPECT_THROW(findScenario("nope"), std::invalid_argument);
-  // Every scenario's robot stays inside the hall, at least 0.5 m from any wall.
-  const World hall = World::hall();
+  EXPECT_EQ(scenarios[18].name, "ILD26TRI/varying/varying");
+  std::vector<std::string> lds01;
+  for (std::size_t k = 19; k < scenarios.size(); ++k)
+    lds01.push_back(scenarios[k].name);
+  EXPECT_EQ(lds01,
+            (std::vector<std::string>{"LDS-01/normal/translation", "LDS-01/normal/rotation",
+                                      "LDS-01/normal/arc", "LDS-01/high/rotation", "LDS-01/high/arc"}));
+  // Every scenario's laser stays inside its world, at least 0.5 m from any wall of the hall or 0.3 m from
+  // any wall of the small room, over the bag's odometry (0.1 s margins) and beyond.
   for (const Scenario& scenario : scenarios) {
+    const bool small_room = scenario.lidar.name == "LDS-01";
+    EXPECT_EQ(scenario.world.outline(), small_room ? World::smallRoomOutline() : World::hallOutline())
+        << scenario.name;
     const PiecewiseTrajectory trajectory = scenario.trajectory();
-    for (double t = -0.1; t <= scenario.duration + 0.3; t += 0.01) {
-      const Pose2 laser = trajectory.pose(t).compose(scenario.mount);
-      EXPECT_GT(hall.distanceTo({laser.x, laser.y}), 0.5) << scenario.name << " at " << t;
+    const double end = scenario.duration + std::max(0.3, 1.0 / scenario.lidar.rate + 0.1);
+    for (double t = -0.1; t <= end; t += 0.01) {
+      const Pose2 base = trajectory.pose(t);
+      const Pose2 laser = base.compose(scenario.mount);
+      EXPECT_TRUE(scenario.world.insideOutline({base.x, base.y})) << scenario.name << " at " << t;
+      EXPECT_GT(scenario.world.distanceTo({laser.x, laser.y}), small_room ? 0.3 : 0.5)
+          << scenario.name << " at " << t;
     }
+  }
+}
+
+/// The LDS-01 paper scenarios: 8 scans at the paper's speeds (normal 1.5 m/s, 2 rad/s; high 6 m/s,
+/// 5 rad/s), the TurtleBot3's mount, and most beams of every scan return from a wall within 3.5 m.
+TEST(Sim, Lds01PaperScenariosSeeTheWallsInEveryScan) {
+  for (const char* name : {"LDS-01/normal/translation", "LDS-01/normal/rotation", "LDS-01/normal/arc",
+                           "LDS-01/high/rotation", "LDS-01/high/arc"}) {
+    const Scenario scenario = findScenario(name);
+    SCOPED_TRACE(name);
+    const bool high = scenario.speed == "high";
+    EXPECT_EQ(scenario.lidar.range_max, 3.5f);
+    EXPECT_EQ(scenario.mount.x, -0.032);
+    ASSERT_EQ(scenario.pieces.size(), 1u);
+    const MotionPiece& piece = scenario.pieces[0];
+    EXPECT_EQ(piece.speed, scenario.motion == "rotation" ? 0.0 : (high ? 6.0 : 1.5));
+    EXPECT_EQ(piece.yaw_rate, scenario.motion == "translation" ? 0.0 : (high ? 5.0 : 2.0));
+    const PiecewiseTrajectory trajectory = scenario.trajectory();
+    const double period = 1.0 / scenario.lidar.rate;
+    int scans = 0;
+    double worst = 1.0;
+    for (; scans * period < scenario.duration - 1e-9; ++scans) {
+      const SimulatedScan simulated =
+          simulateScan(scenario.world, trajectory, scenario.mount, scenario.lidar, 0, scans * period);
+      const auto returns = std::count_if(simulated.scan.ranges.begin(), simulated.scan.ranges.end(),
+                                         [](float range) { return std::isfinite(range); });
+      worst = std::min(worst, static_cast<double>(returns) / simulated.scan.ranges.size());
+    }
+    std::printf("%-26s %d scans, worst scan %.3f of its beams returning\n", name, scans, worst);
+    EXPECT_EQ(scans, 8);
+    EXPECT_GT(worst, 0.75);
   }
 }
 

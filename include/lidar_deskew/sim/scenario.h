@@ -30,7 +30,12 @@ struct Scenario {
 /// The paper's table: UTM-30LX 1440/360 deg/40 Hz, ILD26TRI 360/360 deg/8 Hz, UTM-30LX 1080/270 deg/
 /// 40 Hz; translation, rotation and both; normal speed (1.5 m/s, 2 rad/s, laser on the rotation centre)
 /// and high speed (6 m/s, 5 rad/s, laser 0.25 m ahead, 0.05 m left, turned 0.1 rad). Plus "varying":
-/// the ILD26TRI with speed and turn rate changing inside each scan. 19 scenarios.
+/// the ILD26TRI with speed and turn rate changing inside each scan. 19 scenarios. Then the LDS-01
+/// (360 beams, 5 Hz, 3.5 m) for 8 scans (1.6 s) in World::smallRoom(), laser 32 mm behind the base:
+/// "LDS-01/normal/translation" (from (-1.5, -0.4) heading +x), "LDS-01/normal/rotation" and
+/// "LDS-01/high/rotation" (in the middle), "LDS-01/normal/arc" and "LDS-01/high/arc" (circles about
+/// the middle, radius v / w = 0.75 m and 1.2 m) at the paper's speeds; no high-speed translation
+/// (9.6 m in 8 scans does not fit the room). 24 scenarios.
 std::vector<Scenario> paperScenarios();
 /// Recordings for estimating a sensor's timing (deskew_calibrate): motion "turns", a drive of about
 /// 14 s whose turn rate changes every 1 to 2 s (standing still, turning in place both ways, straight,
