@@ -181,6 +181,8 @@ void writeTruth(const Truth& truth, const std::string& path) {
   out << "zero_scan_time " << (truth.timing_fault.zero_scan_time ? 1 : 0) << "\n";
   out << "beam_period " << truth.beam_period << "\n";
   out << "sweep_period " << truth.sweep_period << "\n";
+  out << "odom_noise " << truth.odom_noise << "\n";
+  out << "odom_noise_seed " << truth.odom_noise_seed << "\n";
   truth_text::writeMotion(out, truth.start, truth.pieces);
   for (const Segment& segment : truth.world.segments()) {
     out << "wall " << segment.a.x() << " " << segment.a.y() << " " << segment.b.x() << " " << segment.b.y()
@@ -219,6 +221,10 @@ Truth readTruth(const std::string& path) {
       return static_cast<bool>(fields >> truth.beam_period);
     if (key == "sweep_period")
       return static_cast<bool>(fields >> truth.sweep_period);
+    if (key == "odom_noise")
+      return static_cast<bool>(fields >> truth.odom_noise);
+    if (key == "odom_noise_seed")
+      return static_cast<bool>(fields >> truth.odom_noise_seed);
     if (key == "wall") {
       double ax, ay, bx, by;
       const bool ok = static_cast<bool>(fields >> ax >> ay >> bx >> by);

@@ -68,6 +68,10 @@ struct Truth {
   double beam_period = 0.0;
   /// [s] true time between scans, 1 / rate (0: not recorded, an older file).
   double sweep_period = 0.0;
+  /// The bag's odometry error (sim::NoisyOdometry's relative_noise; 0 = perfect odometry, as in files
+  /// written before it existed) and the seed of its generator. The motion above stays the true one.
+  double odom_noise = 0.0;
+  unsigned odom_noise_seed = 0;
 
   PiecewiseTrajectory trajectory() const { return PiecewiseTrajectory(start, pieces); }
   /// True laser pose in the world at bag time `time` [ns].
@@ -81,7 +85,7 @@ struct Truth {
 /// Writes / reads the ground-truth file (a small line-based text format, full double precision).
 /// The timing lines: "time_offset S" (= -stamp_error), "reversed 0|1", "time_increment_factor F",
 /// "zero_scan_time 0|1", "beam_period S", "sweep_period S"; absent in older files, which read as no
-/// fault and periods 0.
+/// fault and periods 0. The odometry lines "odom_noise R", "odom_noise_seed N"; absent: 0 (perfect).
 /// read throws std::runtime_error naming the file and line on malformed input.
 void writeTruth(const Truth& truth, const std::string& path);
 Truth readTruth(const std::string& path);
