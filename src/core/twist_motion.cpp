@@ -135,14 +135,28 @@ bool TwistMotion::gatherSamples(const MotionSource& raw, TimeNs begin, TimeNs en
   const std::size_t first = static_cast<std::size_t>(after_begin - times_.begin()) - 1;
   const std::size_t last = static_cast<std::size_t>(at_end - times_.begin());
 
+  // The source's answer at a sample time does not change once given: answers are kept for the next
+  // sweeps (which share most of their window), until time goes back (a bag loop, a clock reset).
+  if (begin < cache_begin_ || &raw != cache_source_)
+    cache_.clear();
+  cache_begin_ = begin;
+  cache_source_ = &raw;
   const auto query = [&](std::size_t i, Sample& sample) {
-    try {
-      const mrpt::poses::CPose3D pose = raw.basePose(times_[i]);
-      sample = {times_[i], detail::rotationOf(pose), detail::translationOf(pose)};
+    const TimeNs time = times_[i];
+    const auto cached = std::lower_bound(cache_.begin(), cache_.end(), time,
+                                         [](const Sample& s, TimeNs t) { return s.time < t; });
+    if (cached != cache_.end() && cached->time == time) {
+      sample = *cached;
       return true;
+    }
+    try {
+      const mrpt::poses::CPose3D pose = raw.basePose(time);
+      sample = {time, detail::rotationOf(pose), detail::translationOf(pose), Twist::Zero(), -1};
     } catch (const MotionUnavailable&) {
       return false;
     }
+    cache_.insert(cached, sample);
+    return true;
   };
   // From the sweep's first sample outwards, stopping where the source no longer answers (a chain's
   // links end at different times).
@@ -165,6 +179,10 @@ bool TwistMotion::gatherSamples(const MotionSource& raw, TimeNs begin, TimeNs en
     }
     samples_.push_back(sample);
   }
+  // Forget what no later sweep's window reaches.
+  const TimeNs oldest = samples_.front().time;
+  cache_.erase(cache_.begin(), std::lower_bound(cache_.begin(), cache_.end(), oldest,
+                                                [](const Sample& s, TimeNs t) { return s.time < t; }));
   return samples_.size() >= 2;
 }
 
@@ -180,41 +198,45 @@ void TwistMotion::estimateNoise() {
   floor_.tail<3>().setConstant(kFloorAngle / typical);
   if (count < kMinNoiseIntervals + 10)
     return;
-  for (int c = 0; c < 6; ++c) {
-    // Each interval's mean against the best of the simplest local models that can hold it: constant over
-    // it and one neighbour, a line through three, a quartic through six (any stencil containing it);
-    // each residual divided by its standard deviation under unit noise. Steps, kinks and smooth curves of
-    // the true twist leave one of them exact or nearly; noise leaves all of them off.
-    const auto y = [&](std::size_t k) { return means_[k][c]; };
-    const auto chordResidual = [&](std::size_t i) {  // of i from the line through i-1 and i+1
-      const double span = centres_[i + 1] - centres_[i - 1];
-      const double w_before = (centres_[i + 1] - centres_[i]) / span;
-      const double w_after = 1.0 - w_before;
-      const double residual = y(i) - (w_before * y(i - 1) + w_after * y(i + 1));
-      return std::abs(residual) / std::sqrt(1.0 + w_before * w_before + w_after * w_after);
-    };
-    // The last of six from the quartic through the other five (Lagrange extrapolation): a smooth
-    // curve's twist (rough ground, 2-3 Hz) is explained by it to 0.2 % of its amplitude at 50 Hz.
-    const auto curveResidual = [&](std::size_t i) {
-      double prediction = 0.0, variance = 1.0;
-      for (std::size_t a = i; a < i + 5; ++a) {
-        double weight = 1.0;
-        for (std::size_t b = i; b < i + 5; ++b) {
-          if (b != a)
-            weight *= (centres_[i + 5] - centres_[b]) / (centres_[a] - centres_[b]);
-        }
-        prediction += weight * y(a);
-        variance += weight * weight;
+  // Each interval's mean against the best of the simplest local models that can hold it: constant over
+  // it and one neighbour, a line through three, a quartic through six (any stencil containing it); each
+  // residual divided by its standard deviation under unit noise. Steps, kinks and smooth curves of the
+  // true twist leave one of them exact or nearly; noise leaves all of them off. The residuals of each
+  // stencil are computed once, for all six components.
+  // step_[k]: |m_k+1 - m_k| / sqrt(2); chord_[k]: m_k from the line through k-1 and k+1; curve_[i]: m_i+5
+  // from the quartic through i..i+4 (Lagrange extrapolation: a smooth curve's twist, rough ground at
+  // 2-3 Hz, is explained by it to 0.2 % of its amplitude at 50 Hz).
+  step_.resize(count);
+  chord_.resize(count);
+  curve_.resize(count);
+  for (std::size_t k = 0; k + 1 < count; ++k)
+    step_[k] = (means_[k + 1] - means_[k]).cwiseAbs() / std::sqrt(2.0);
+  for (std::size_t k = 1; k + 1 < count; ++k) {
+    const double w_before = (centres_[k + 1] - centres_[k]) / (centres_[k + 1] - centres_[k - 1]);
+    const double w_after = 1.0 - w_before;
+    chord_[k] = (means_[k] - w_before * means_[k - 1] - w_after * means_[k + 1]).cwiseAbs() /
+                std::sqrt(1.0 + w_before * w_before + w_after * w_after);
+  }
+  for (std::size_t i = 0; i + 5 < count; ++i) {
+    Twist prediction = Twist::Zero();
+    double variance = 1.0;
+    for (std::size_t a = i; a < i + 5; ++a) {
+      double weight = 1.0;
+      for (std::size_t b = i; b < i + 5; ++b) {
+        if (b != a)
+          weight *= (centres_[i + 5] - centres_[b]) / (centres_[a] - centres_[b]);
       }
-      return std::abs(y(i + 5) - prediction) / std::sqrt(variance);
-    };
+      prediction += weight * means_[a];
+      variance += weight * weight;
+    }
+    curve_[i] = (means_[i + 5] - prediction).cwiseAbs() / std::sqrt(variance);
+  }
+  for (int c = 0; c < 6; ++c) {
     scratch_.clear();
     for (std::size_t j = 5; j + 6 <= count; ++j) {
-      double e =
-          std::min({std::abs(y(j) - y(j - 1)) / std::sqrt(2.0), std::abs(y(j + 1) - y(j)) / std::sqrt(2.0),
-                    chordResidual(j - 1), chordResidual(j), chordResidual(j + 1)});
+      double e = std::min({step_[j - 1][c], step_[j][c], chord_[j - 1][c], chord_[j][c], chord_[j + 1][c]});
       for (std::size_t i = j - 5; i <= j; ++i)
-        e = std::min(e, curveResidual(i));
+        e = std::min(e, curve_[i][c]);
       scratch_.push_back(e);
     }
     const std::size_t middle = scratch_.size() / 2;
@@ -286,6 +308,7 @@ const MotionSource& TwistMotion::prepare(const MotionSource& raw, TimeNs begin, 
   raw_ = &raw;
   pieces_.clear();
   smoothed_intervals_ = 0;
+  screws_ = false;
   if (!gatherSamples(raw, begin, end))
     return raw;
 
@@ -299,9 +322,19 @@ const MotionSource& TwistMotion::prepare(const MotionSource& raw, TimeNs begin, 
     const Sample& b = samples_[k + 1];
     durations_[k] = nsToSeconds(b.time - a.time);
     centres_[k] = nsToSeconds(a.time - samples_.front().time) + 0.5 * durations_[k];
-    const Eigen::Matrix3d relative_rotation = a.rotation.transpose() * b.rotation;
-    const Eigen::Vector3d relative_translation = a.rotation.transpose() * (b.translation - a.translation);
-    means_[k] = se3Log(relative_rotation, relative_translation) / durations_[k];
+    if (a.mean_until != b.time) {  // not computed in an earlier sweep
+      const Eigen::Matrix3d relative_rotation = a.rotation.transpose() * b.rotation;
+      const Eigen::Vector3d relative_translation = a.rotation.transpose() * (b.translation - a.translation);
+      means_[k] = se3Log(relative_rotation, relative_translation) / durations_[k];
+      const auto cached = std::lower_bound(cache_.begin(), cache_.end(), a.time,
+                                           [](const Sample& s, TimeNs t) { return s.time < t; });
+      if (cached != cache_.end() && cached->time == a.time) {
+        cached->mean = means_[k];
+        cached->mean_until = b.time;
+      }
+    } else {
+      means_[k] = a.mean;
+    }
   }
   estimateNoise();
 
@@ -321,6 +354,7 @@ const MotionSource& TwistMotion::prepare(const MotionSource& raw, TimeNs begin, 
 
   Eigen::Matrix3d rotation = samples_[first].rotation;
   Eigen::Vector3d translation = samples_[first].translation;
+  screws_ = true;
   for (std::size_t j = first; j < last; ++j) {
     Piece piece;
     piece.time = samples_[j].time;
@@ -338,6 +372,7 @@ const MotionSource& TwistMotion::prepare(const MotionSource& raw, TimeNs begin, 
       centre = mean - (h * h / 12.0) * se3Bracket(centre, slope);
     piece.start_twist = centre - 0.5 * h * slope;
     piece.slope = slope;
+    screws_ = screws_ && slope.isZero();
     piece.rotation = rotation;
     piece.translation = translation;
     pieces_.push_back(piece);

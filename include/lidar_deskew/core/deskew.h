@@ -143,6 +143,10 @@ class KnotTrajectory {
     // planar case: left_rotation = Rot_z(left_yaw), Exp(s angle axis) = Rot_z(s yaw_step)
     double left_yaw_cos, left_yaw_sin;
     double yaw_step;  // [rad] signed
+    // screw segments (the source moves with a constant body twist between knots, planar): p(s) = p_k +
+    // (R(s) - R_k) screw_offset instead of the straight line; translation_step is then 0.
+    bool screw = false;
+    Eigen::Vector3d screw_offset = Eigen::Vector3d::Zero();  // [m], in the frame of left_translation
     // transformAt(): with K the cross-product matrix of the axis, sin and versin of s angle,
     //   rotation    = left_rotation (I + sin K + versin K^2) R_M = rotation_base + sin rotation_sine + versin
     //   rotation_versine translation = left_rotation (I + sin K + versin K^2) p_M + left_translation + s

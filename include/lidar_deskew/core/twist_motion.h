@@ -5,6 +5,7 @@
 #include <Eigen/Core>
 
 #include <array>
+#include <deque>
 #include <vector>
 
 #include "lidar_deskew/core/motion.h"
@@ -61,6 +62,9 @@ class TwistMotion final : public MotionSource {
   /// The sample times in (begin, end): the fitted motion's pieces end there.
   void appendSampleTimes(TimeNs begin, TimeNs end, std::vector<TimeNs>& times) const override;
   TimeNs longestGap(TimeNs begin, TimeNs end) const override;
+  /// True when every fitted piece has a constant twist (exact samples without a changing twist, and
+  /// no smoothing): its pieces are screws.
+  bool screwsBetweenSamples() const override { return screws_; }
 
   /// The noise [m/s, rad/s] per twist component estimated for the last prepare() (0 when exact or
   /// too few samples), and how many intervals were fit with a line over more than three intervals.
@@ -72,6 +76,8 @@ class TwistMotion final : public MotionSource {
     TimeNs time;
     Eigen::Matrix3d rotation;
     Eigen::Vector3d translation;
+    Twist mean;  // of the interval to the sample at mean_until (-1: not computed yet)
+    TimeNs mean_until;
   };
   /// One fitted interval: starts at `time`, lasts `duration` [s]; the twist at t' [s] into it is
   /// start_twist + t' slope; pose there = start pose * Exp(Omega(t')).
@@ -92,6 +98,9 @@ class TwistMotion final : public MotionSource {
   double smoothing_window_;
   const MotionSource* raw_ = nullptr;
   std::vector<Sample> samples_;
+  std::deque<Sample> cache_;  // the source's answers at its sample times, sorted
+  const MotionSource* cache_source_ = nullptr;
+  TimeNs cache_begin_ = 0;
   std::vector<TimeNs> times_;      // scratch: sample times
   std::vector<Twist> means_;       // per interval
   std::vector<double> durations_;  // [s] per interval
@@ -103,7 +112,9 @@ class TwistMotion final : public MotionSource {
   Eigen::Vector3d end_translation_;
   TimeNs end_time_ = 0;
   std::size_t smoothed_intervals_ = 0;
+  bool screws_ = false;
   std::vector<double> scratch_;
+  std::vector<Twist> step_, chord_, curve_;  // estimateNoise()'s residuals per stencil
 };
 
 }  // namespace lidar_deskew::core
