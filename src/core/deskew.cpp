@@ -135,7 +135,7 @@ void KnotTrajectory::build(TimeNs origin, double span_begin, double span_end, Ti
     }
     break;
   }
-  const bool screw_segments = screws && !grid;
+  const bool screw_segments = planar_ && (screws || motion.screwsBetweenKnots());
   const std::size_t segment_count = std::max<std::size_t>(1, times.size() - 1);
   segments_.resize(segment_count);
   for (std::size_t k = 0; k < segment_count; ++k) {

@@ -282,6 +282,9 @@ void TwistMotion::fitInterval(std::size_t j, int c, double& mean, double& slope)
     mean = alpha;
     slope = beta;
     any_line = true;
+    // Exact samples (no noise above the floor): a wider line is the same line; nothing to smooth.
+    if (noise_[c] <= floor_[c])
+      break;
   }
   if (any_line)
     return;
@@ -360,13 +363,17 @@ const MotionSource& TwistMotion::prepare(const MotionSource& raw, TimeNs begin, 
     piece.time = samples_[j].time;
     piece.duration = durations_[j];
     Twist mean, slope;
-    for (int c = 0; c < 6; ++c)
+    const double h = piece.duration;
+    bool smoothed = false;
+    for (int c = 0; c < 6; ++c) {
       fitInterval(j, c, mean[c], slope[c]);
-    if (mean != means_[j] || !slope.isZero())
-      ++smoothed_intervals_;
+      if (std::abs(slope[c]) * h <= floor_[c])
+        slope[c] = 0.0;  // a change over the interval below the floor: none
+      smoothed = smoothed || std::abs(mean[c] - means_[j][c]) > floor_[c];
+    }
+    smoothed_intervals_ += smoothed ? 1 : 0;
     // Omega(h) = mean h + h^3/12 [start, slope] should be the fitted mean's h: solve for the start
     // twist (two fixed-point steps; the bracket is second order).
-    const double h = piece.duration;
     Twist centre = mean;
     for (int iteration = 0; iteration < 2; ++iteration)
       centre = mean - (h * h / 12.0) * se3Bracket(centre, slope);

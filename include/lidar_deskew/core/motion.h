@@ -37,6 +37,11 @@ class MotionSource {
   /// exactly (KnotTrajectory, planar motion). Default: false.
   virtual bool screwsBetweenSamples() const { return false; }
 
+  /// True when the source's motion between any two close times is nearer a screw through its poses there
+  /// than a straight line (a fitted twist): KnotTrajectory then joins every pair of knots by a screw
+  /// (planar motion). Default: false (tf2's own straight lines).
+  virtual bool screwsBetweenKnots() const { return false; }
+
   /// [ns] The longest interval between consecutive samples of the source that overlaps [begin, end]:
   /// the source interpolates across it linearly, whatever the robot did meanwhile. 0 for continuous
   /// sources (the default). Gaps before the first or after the last sample are not counted: there

@@ -65,9 +65,11 @@ class TwistMotion final : public MotionSource {
   /// True when every fitted piece has a constant twist (exact samples without a changing twist, and
   /// no smoothing): its pieces are screws.
   bool screwsBetweenSamples() const override { return screws_; }
+  bool screwsBetweenKnots() const override { return true; }
 
   /// The noise [m/s, rad/s] per twist component estimated for the last prepare() (0 when exact or
-  /// too few samples), and how many intervals were fit with a line over more than three intervals.
+  /// too few samples), and how many of its intervals were smoothed (fitted twist off their own mean
+  /// by more than the floor).
   const Twist& estimatedNoise() const { return noise_; }
   std::size_t smoothedIntervals() const { return smoothed_intervals_; }
 
