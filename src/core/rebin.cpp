@@ -4,6 +4,8 @@
 #include <cmath>
 #include <limits>
 
+#include "fast_atan2.h"
+
 namespace lidar_deskew::core {
 namespace {
 
@@ -15,32 +17,9 @@ inline double cross(double ax, double ay, double bx, double by) {
   return ax * by - ay * bx;
 }
 
-/// [rad] largest error of fastAtan2.
-constexpr double kBearingError = 1e-7;
-
-/// atan2(y, x) [rad] in [-pi, pi] to within 5e-8 rad (kBearingError with margin), a few times faster than
-/// the library's: an odd polynomial for atan on [0, 1], least-squares fitted on Chebyshev nodes.
-inline double fastAtan2(double y, double x) {
-  const double ax = std::abs(x), ay = std::abs(y);
-  const double high = std::max(ax, ay);
-  if (high == 0.0)
-    return 0.0;
-  const double z = std::min(ax, ay) / high;
-  const double z2 = z * z;
-  double angle =
-      z * (0.99999943684314718 +
-           z2 * (-0.33330106677687926 +
-                 z2 * (0.19948508985754437 +
-                       z2 * (-0.1391580226062557 +
-                             z2 * (0.096562564702695933 +
-                                   z2 * (-0.056063176726315958 +
-                                         z2 * (0.02194661103058218 + z2 * -0.0040733094638858158)))))));
-  if (ay > ax)
-    angle = 0.5 * M_PI - angle;
-  if (x < 0.0)
-    angle = M_PI - angle;
-  return y < 0.0 ? -angle : angle;
-}
+/// [rad] bearings are off by at most this: intervals of bins are widened by it (the crossing test is exact).
+constexpr double kBearingError = 2.0 * detail::kFastAtan2Error;
+using detail::fastAtan2;
 
 /// `delta` [rad], a difference of two bearings in [-pi, pi], moved into [-pi, pi].
 inline double wrapDelta(double delta) {
@@ -383,7 +362,8 @@ void ScanRebinner::traceContours(const Points& points, const BinSweep& sweep) {
     const double nx = link == Link::kCorner ? corner_x_[corner_of] : x_[neighbour];
     const double ny = link == Link::kCorner ? corner_y_[corner_of] : y_[neighbour];
     extendLine(points, j, x_[j] - nx, y_[j] - ny, joinGap(j, neighbour, abs_increment), 0.0,
-               bearing_[j] - half_bin, abs_increment, sweep, 0.0, near_end_of_step);
+               bearing_[j] - half_bin - kBearingError, abs_increment + 2.0 * kBearingError, sweep, 0.0,
+               near_end_of_step);
   }
 }
 
