@@ -1,6 +1,7 @@
-// Per-scan cost with tf lookups included, and accuracy against truth: our knots (default), our exact
-// per-beam lookups, and laser_geometry's fixed-frame transformLaserScanToPointCloud, on the same scans
-// and the same tf2 buffer. Run: bench/run.sh tf (pins to one core).
+// Per-scan cost with tf lookups included, and accuracy against truth: our knots (default: twist
+// interpolation; and linear, tf2's), our exact per-beam lookups, and laser_geometry's fixed-frame
+// transformLaserScanToPointCloud, on the same scans and the same tf2 buffer. Run: bench/run.sh tf (pins to
+// one core).
 //
 // scan_path/<sensor> is the whole per-scan path of the node and deskew_bag (ScanProcessor: the message
 // checked and timed, the mount looked up, corrected, re-binned, both output messages built); bench/run.sh
@@ -120,10 +121,12 @@ void laserGeometry(Recording& rec, std::size_t k, laser_geometry::LaserProjectio
   projector.transformLaserScanToPointCloud(message.header.frame_id, message, out, "odom", rec.buffer);
 }
 
-void runOurs(benchmark::State& state, const std::string& sensor, double knot_interval) {
+void runOurs(benchmark::State& state, const std::string& sensor, double knot_interval,
+             core::Interpolation interpolation) {
   Recording& rec = recording(sensor);
   core::DeskewConfig config;
   config.knot_interval = knot_interval;
+  config.interpolation = interpolation;
   core::ScanDeskewer deskewer(config);
   core::DeskewedScan out;
   std::size_t k = 0;
@@ -197,9 +200,14 @@ class RatioReporter : public benchmark::ConsoleReporter {
 
 void registerAll() {
   for (const std::string sensor : {"UTM-30LX", "ILD26TRI", "LDS-01"}) {
-    benchmark::RegisterBenchmark(("ours_knots/" + sensor).c_str(), runOurs, sensor, 0.005)
+    benchmark::RegisterBenchmark(("ours_knots/" + sensor).c_str(), runOurs, sensor, 0.005,
+                                 core::Interpolation::kTwist)
         ->Unit(benchmark::kMicrosecond);
-    benchmark::RegisterBenchmark(("ours_exact/" + sensor).c_str(), runOurs, sensor, 0.0)
+    benchmark::RegisterBenchmark(("ours_knots_linear/" + sensor).c_str(), runOurs, sensor, 0.005,
+                                 core::Interpolation::kLinear)
+        ->Unit(benchmark::kMicrosecond);
+    benchmark::RegisterBenchmark(("ours_exact/" + sensor).c_str(), runOurs, sensor, 0.0,
+                                 core::Interpolation::kTwist)
         ->Unit(benchmark::kMicrosecond);
     benchmark::RegisterBenchmark(("laser_geometry/" + sensor).c_str(), runLaserGeometry, sensor)
         ->Unit(benchmark::kMicrosecond);

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Builds (Release, CMake directly) and runs one benchmark on one core, median of 5 repetitions.
 #   bash bench/run.sh core   # the ROS-free core: correction, re-binning, per-point times
-#   bash bench/run.sh tf     # with tf lookups: ours (knots, exact) vs laser_geometry, then accuracy
+#   bash bench/run.sh tf     # with tf lookups: ours (knots: twist and linear; exact) vs laser_geometry, then accuracy
 #   bash bench/run.sh cloud  # multi-line clouds (OS1-64, 65,536 points): core, and the whole per-cloud path
 #   bash bench/run.sh scan   # the whole per-scan path (ScanProcessor) vs laser_geometry, and their ratio
 # Extra arguments go to Google Benchmark, e.g. --benchmark_filter=DeskewScan

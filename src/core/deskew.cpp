@@ -83,46 +83,59 @@ void KnotTrajectory::build(TimeNs origin, double span_begin, double span_end, Ti
     throw InvalidInput("time_offset", "span end before span begin");
 
   // Knot times: both ends and the source's own sample times; and every knot_interval between unless
-  // the source's sample times are all there is to its motion (then they reproduce it exactly).
+  // the source's sample times are all there is to its motion (then they reproduce it exactly), or it
+  // moves as a screw between them and the motion is planar (then screw segments do).
   const TimeNs begin_time = origin + secondsToNs(span_begin);
   const TimeNs end_time = origin + secondsToNs(span_end);
+  const bool screws = motion.screwsBetweenSamples();
+  bool grid = !motion.sampleTimesComplete() && !screws;
   std::vector<TimeNs>& times = scratch_times_;
-  times.clear();
-  times.push_back(begin_time);
-  if (!motion.sampleTimesComplete()) {
-    const TimeNs step = secondsToNs(knot_interval);
-    for (TimeNs t = begin_time + step; t < end_time; t += step)
-      times.push_back(t);
-  }
-  motion.appendSampleTimes(begin_time, end_time, times);
-  times.push_back(end_time);
-  std::sort(times.begin(), times.end());
-  times.erase(std::unique(times.begin(), times.end()), times.end());
-
-  // One motion query per knot (the reference time is usually one of them), then the chain prefix and
-  // one MRPT composition per knot.
   std::vector<mrpt::poses::CPose3D>& base_poses = scratch_poses_;
-  base_poses.clear();
-  for (const TimeNs time : times)
-    base_poses.push_back(motion.basePose(time));
-  const auto reference_knot = std::lower_bound(times.begin(), times.end(), reference_time);
-  const mrpt::poses::CPose3D base_at_reference =
-      reference_knot != times.end() && *reference_knot == reference_time
-          ? base_poses[static_cast<std::size_t>(reference_knot - times.begin())]
-          : motion.basePose(reference_time);
-  const mrpt::poses::CPose3D laser_from_reference_base = (-mount) + (-base_at_reference);
-  mount_rotation_ = detail::rotationOf(mount);
-  mount_translation_ = detail::translationOf(mount);
-
-  knot_offsets_.resize(times.size());
   std::vector<mrpt::poses::CPose3D> lefts;
-  lefts.reserve(times.size());
-  for (std::size_t k = 0; k < times.size(); ++k) {
-    knot_offsets_[k] = nsToSeconds(times[k] - origin);
-    lefts.push_back(laser_from_reference_base + base_poses[k]);
-  }
+  for (;;) {
+    times.clear();
+    times.push_back(begin_time);
+    if (grid) {
+      const TimeNs step = secondsToNs(knot_interval);
+      for (TimeNs t = begin_time + step; t < end_time; t += step)
+        times.push_back(t);
+    }
+    motion.appendSampleTimes(begin_time, end_time, times);
+    times.push_back(end_time);
+    std::sort(times.begin(), times.end());
+    times.erase(std::unique(times.begin(), times.end()), times.end());
 
-  planar_ = rotatesAboutZOnly(mount_rotation_) && rotatesAboutZOnly(detail::rotationOf(lefts.back()));
+    // One motion query per knot (the reference time is usually one of them), then the chain prefix and
+    // one MRPT composition per knot.
+    base_poses.clear();
+    for (const TimeNs time : times)
+      base_poses.push_back(motion.basePose(time));
+    const auto reference_knot = std::lower_bound(times.begin(), times.end(), reference_time);
+    const mrpt::poses::CPose3D base_at_reference =
+        reference_knot != times.end() && *reference_knot == reference_time
+            ? base_poses[static_cast<std::size_t>(reference_knot - times.begin())]
+            : motion.basePose(reference_time);
+    const mrpt::poses::CPose3D laser_from_reference_base = (-mount) + (-base_at_reference);
+    mount_rotation_ = detail::rotationOf(mount);
+    mount_translation_ = detail::translationOf(mount);
+
+    knot_offsets_.resize(times.size());
+    lefts.clear();
+    lefts.reserve(times.size());
+    for (std::size_t k = 0; k < times.size(); ++k) {
+      knot_offsets_[k] = nsToSeconds(times[k] - origin);
+      lefts.push_back(laser_from_reference_base + base_poses[k]);
+    }
+    planar_ = rotatesAboutZOnly(mount_rotation_);
+    for (const mrpt::poses::CPose3D& left : lefts)
+      planar_ = planar_ && rotatesAboutZOnly(detail::rotationOf(left));
+    if (screws && !grid && !planar_) {
+      grid = true;  // screw segments are planar here: straight segments between grid knots instead
+      continue;
+    }
+    break;
+  }
+  const bool screw_segments = screws && !grid;
   const std::size_t segment_count = std::max<std::size_t>(1, times.size() - 1);
   segments_.resize(segment_count);
   for (std::size_t k = 0; k < segment_count; ++k) {
@@ -144,6 +157,18 @@ void KnotTrajectory::build(TimeNs origin, double span_begin, double span_end, Ti
     segment.left_yaw_cos = segment.left_rotation(0, 0);
     segment.left_yaw_sin = segment.left_rotation(1, 0);
     segment.yaw_step = rotation_vector.z();
+    // A screw from knot k to k+1: (R_k+1 - R_k) w = the translation step, w = (Rot(yaw_step) - I)^-1 R_k^T
+    // step. Below 1e-9 rad the straight line is the screw to 1e-9 of the step.
+    segment.screw = screw_segments && std::abs(segment.yaw_step) > 1e-9;
+    segment.screw_offset.setZero();
+    if (segment.screw) {
+      const Eigen::Vector3d local = segment.left_rotation.transpose() * segment.translation_step;
+      const double c = std::cos(segment.yaw_step) - 1.0, s = std::sin(segment.yaw_step);
+      const double determinant = c * c + s * s;
+      segment.screw_offset = Eigen::Vector3d((c * local.x() + s * local.y()) / determinant,
+                                             (-s * local.x() + c * local.y()) / determinant, 0.0);
+      segment.translation_step.setZero();
+    }
     Eigen::Matrix3d cross;
     cross << 0.0, -segment.axis.z(), segment.axis.y(), segment.axis.z(), 0.0, -segment.axis.x(),
         -segment.axis.y(), segment.axis.x(), 0.0;
@@ -153,9 +178,8 @@ void KnotTrajectory::build(TimeNs origin, double span_begin, double span_end, Ti
     segment.rotation_sine = left_cross * mount_rotation_;
     segment.rotation_versine = left_cross2 * mount_rotation_;
     segment.translation_base = segment.left_rotation * mount_translation_ + segment.left_translation;
-    segment.translation_sine = left_cross * mount_translation_;
-    segment.translation_versine = left_cross2 * mount_translation_;
-    planar_ = planar_ && rotatesAboutZOnly(segment.left_rotation);
+    segment.translation_sine = left_cross * (mount_translation_ + segment.screw_offset);
+    segment.translation_versine = left_cross2 * (mount_translation_ + segment.screw_offset);
   }
   hint_ = 0;
 }
@@ -174,12 +198,14 @@ Eigen::Vector3d KnotTrajectory::apply(double time_offset, const Eigen::Vector3d&
   const Segment& segment = segments_[segmentFor(time_offset)];
   const double fraction =
       std::clamp((time_offset - segment.begin_offset) * segment.inverse_duration, 0.0, 1.0);
+  // A screw segment moves the point as if it sat screw_offset further out: p(s) - p_k = R_k (Exp - I) w.
   const Eigen::Vector3d in_base = mount_rotation_ * raw + mount_translation_;
+  const Eigen::Vector3d moved = in_base + segment.screw_offset;
   Eigen::Vector3d rotated = in_base;
   if (segment.angle != 0.0) {
     double sine, versine;
     sinAndVersine(fraction * segment.angle, sine, versine);
-    const Eigen::Vector3d axis_cross = segment.axis.cross(in_base);
+    const Eigen::Vector3d axis_cross = segment.axis.cross(moved);
     rotated += sine * axis_cross + versine * segment.axis.cross(axis_cross);
   }
   return segment.left_rotation * rotated + segment.left_translation + fraction * segment.translation_step;
@@ -250,8 +276,12 @@ void KnotTrajectory::correctPlanarScan(const PlanarScan& scan, double beam_perio
     const double step_x = fraction_step * segment.translation_step.x();
     const double step_y = fraction_step * segment.translation_step.y();
     const double step_z = fraction_step * segment.translation_step.z();
-    double translation_x = segment.left_translation.x() + fraction * segment.translation_step.x();
-    double translation_y = segment.left_translation.y() + fraction * segment.translation_step.y();
+    // Screw segments: R(s) (w + o) + p_k - R_k o, o = screw_offset (0 for straight segments).
+    const double offset_x = segment.screw_offset.x(), offset_y = segment.screw_offset.y();
+    double translation_x = segment.left_translation.x() + fraction * segment.translation_step.x() -
+                           (segment.left_yaw_cos * offset_x - segment.left_yaw_sin * offset_y);
+    double translation_y = segment.left_translation.y() + fraction * segment.translation_step.y() -
+                           (segment.left_yaw_sin * offset_x + segment.left_yaw_cos * offset_y);
     double translation_z =
         segment.left_translation.z() + fraction * segment.translation_step.z() + mount_translation_.z();
 
@@ -259,8 +289,8 @@ void KnotTrajectory::correctPlanarScan(const PlanarScan& scan, double beam_perio
       const float range = ranges[beam];
       if (is_return(range)) {
         const double x = range * unit[beam].x(), y = range * unit[beam].y();
-        const double wx = m00 * x + m01 * y + mount_x;
-        const double wy = m10 * x + m11 * y + mount_y;
+        const double wx = m00 * x + m01 * y + mount_x + offset_x;
+        const double wy = m10 * x + m11 * y + mount_y + offset_y;
         write->position.x() = cosine_total * wx - sine_total * wy + translation_x;
         write->position.y() = sine_total * wx + cosine_total * wy + translation_y;
         write->position.z() = translation_z;
@@ -282,7 +312,22 @@ void KnotTrajectory::correctPlanarScan(const PlanarScan& scan, double beam_perio
 
 // ---------------------------------------------------------------------------------------------------
 
+Interpolation parseInterpolation(const std::string& text) {
+  if (text == "linear")
+    return Interpolation::kLinear;
+  if (text == "twist")
+    return Interpolation::kTwist;
+  throw InvalidInput("interpolation", "must be linear or twist, got '" + text + "'");
+}
+
+const char* interpolationName(Interpolation interpolation) {
+  return interpolation == Interpolation::kLinear ? "linear" : "twist";
+}
+
 void DeskewConfig::validate() const {
+  if (!std::isfinite(smoothing_window) || smoothing_window < 0.0 || smoothing_window > 10.0) {
+    throw InvalidInput("smoothing_window", "must be in [0, 10] s, got " + std::to_string(smoothing_window));
+  }
   if (!std::isfinite(knot_interval) || knot_interval < 0.0 ||
       (knot_interval > 0.0 && (knot_interval < kMinKnotInterval || knot_interval > kMaxKnotInterval))) {
     throw InvalidInput("knot_interval", "must be 0 (exact) or in [" + std::to_string(kMinKnotInterval) +
@@ -308,8 +353,13 @@ Eigen::Vector3d deskewPointExact(const Eigen::Vector3d& raw, TimeNs point_time, 
   return ExactChain(reference_time, mount, motion).apply(point_time, raw);
 }
 
-ScanDeskewer::ScanDeskewer(const DeskewConfig& config) : config_(config) {
-  config_.validate();
+ScanDeskewer::ScanDeskewer(const DeskewConfig& config)
+    : config_((config.validate(), config)), twist_(config.smoothing_window) {}
+
+const MotionSource& ScanDeskewer::motionFor(const MotionSource& motion, TimeNs begin, TimeNs end) {
+  if (config_.interpolation == Interpolation::kLinear)
+    return motion;
+  return twist_.prepare(motion, begin, end);
 }
 
 void ScanDeskewer::updateBeamDirections(const PlanarScan& scan) {
@@ -357,6 +407,10 @@ void ScanDeskewer::correctScan(const PlanarScan& scan, const BeamTiming& timing,
   }
   updateBeamDirections(scan);
   const double reference_offset = nsToSeconds(out.reference_time - timing.first_beam_time);
+  const double last_offset = timing.beamOffset(count - 1);
+  const double span_begin = std::min(0.0, last_offset), span_end = std::max(0.0, last_offset);
+  const MotionSource& source = motionFor(motion, timing.first_beam_time + secondsToNs(span_begin),
+                                         timing.first_beam_time + secondsToNs(span_end));
 
   // Beam by beam, for the exact mode and for non-planar motion: correct(i, raw point) per return.
   const auto correctEachReturn = [&](auto&& correct) {
@@ -372,15 +426,14 @@ void ScanDeskewer::correctScan(const PlanarScan& scan, const BeamTiming& timing,
   };
 
   if (config_.knot_interval == 0.0) {
-    const ExactChain chain(out.reference_time, mount, motion);
+    const ExactChain chain(out.reference_time, mount, source);
     correctEachReturn(
         [&](std::size_t i, const Eigen::Vector3d& raw) { return chain.apply(timing.beamTime(i), raw); });
     return;
   }
 
-  const double last_offset = timing.beamOffset(count - 1);
-  trajectory_.build(timing.first_beam_time, std::min(0.0, last_offset), std::max(0.0, last_offset),
-                    out.reference_time, config_.knot_interval, mount, motion);
+  trajectory_.build(timing.first_beam_time, span_begin, span_end, out.reference_time, config_.knot_interval,
+                    mount, source);
   if (trajectory_.planar()) {
     trajectory_.correctPlanarScan(scan, timing.beam_period, beam_directions_, reference_offset, out);
     return;
@@ -463,6 +516,8 @@ TimeNs ScanDeskewer::correctFirings(const std::vector<Eigen::Vector3d>& points, 
                                   : config_.reference == Reference::kEnd ? latest
                                                                          : 0.5 * (earliest + latest);
   const TimeNs reference_time = origin + secondsToNs(reference_offset);
+  const MotionSource& source =
+      motionFor(motion, origin + secondsToNs(earliest), origin + secondsToNs(latest));
   corrected.resize(points.size());
   const Eigen::Vector3d* const in = points.data();
   Eigen::Vector3d* const out = corrected.data();
@@ -470,7 +525,7 @@ TimeNs ScanDeskewer::correctFirings(const std::vector<Eigen::Vector3d>& points, 
   const double* const offsets = firings.offsets.data();
 
   if (config_.knot_interval == 0.0) {
-    const ExactChain chain(reference_time, mount, motion);
+    const ExactChain chain(reference_time, mount, source);
     for (std::size_t i = 0; i < points.size(); ++i) {
       if (firing_of[i] >= count)
         throw beyondTheFirings(count);
@@ -478,7 +533,7 @@ TimeNs ScanDeskewer::correctFirings(const std::vector<Eigen::Vector3d>& points, 
     }
     return reference_time;
   }
-  trajectory_.build(origin, earliest, latest, reference_time, config_.knot_interval, mount, motion);
+  trajectory_.build(origin, earliest, latest, reference_time, config_.knot_interval, mount, source);
   // The points of one firing share one affine map, built once.
   firing_maps_.resize(count);
   for (std::size_t f = 0; f < count; ++f)

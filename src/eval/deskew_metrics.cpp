@@ -26,7 +26,8 @@ int usage(const char* program) {
   std::fprintf(
       stderr,
       "usage: %s BAG TRUTH [--markdown] [--knot-interval S] [--rebin-gap-factor F] [--rebin-min-gap M]\n"
-      "          [--params FILE.yaml (the timing parameters)] [--figure-csv FILE] [--figure-scan K]\n"
+      "          [--params FILE.yaml (the timing and interpolation parameters)] [--figure-csv FILE] "
+      "[--figure-scan K]\n"
       "       %s --cloud BAG TRUTH [--markdown]\n",
       program, program);
   return 2;
@@ -120,7 +121,11 @@ int main(int argc, char** argv) {
         names.push_back(entry.first);
       for (const std::string& unknown : ros_adapter::DeskewParams::unknownNames(names))
         throw std::runtime_error(params_file + ": unknown parameter " + unknown);
-      options.timing = ros_adapter::DeskewParams::load(ros_adapter::TextParams(values)).timing;
+      const ros_adapter::DeskewParams params =
+          ros_adapter::DeskewParams::load(ros_adapter::TextParams(values));
+      options.timing = params.timing;
+      options.deskew.interpolation = params.deskew.interpolation;
+      options.deskew.smoothing_window = params.deskew.smoothing_window;
     }
     if (cloud)
       return cloudMetrics(bag_path, truth_path, markdown);

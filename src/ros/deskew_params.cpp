@@ -68,6 +68,11 @@ const ParamSpec kSpecs[] = {
      "clouds: the planar scan's range_max; farther points are left out"},
     {"knot_interval", "double", "0.005", "s", 1e-5, 1.0, false, "", false, false,
      "spacing of tf lookups across the sweep (plus tf's own sample times)"},
+    {"interpolation", "string", "twist", "", kNoBound, kNoBound, false, "twist|linear", false, false,
+     "motion between tf samples: twist = the body twist fit over neighbouring samples (exact on arcs, "
+     "smooths noisy odometry); linear = tf2's own straight line"},
+    {"smoothing_window", "double", "0.6", "s", 0.0, 10.0, false, "", false, false,
+     "twist: longest time over which noisy odometry is fit as one smooth motion; 0 = follow every sample"},
     {"exact", "bool", "false", "", kNoBound, kNoBound, false, "", false, false,
      "one tf lookup per beam (verification, benchmarks)"},
     {"tf_timeout", "double", "0.2", "s", 0.0, 60.0, false, "", false, true,
@@ -236,6 +241,11 @@ DeskewParams DeskewParams::load(const ParamSource& source, const DeskewParams& b
   source.get("scan_angle_increment", params.cloud_scan.angle_increment);
   source.get("scan_range_max", params.cloud_scan.range_max);
   source.get("knot_interval", params.deskew.knot_interval);
+  if (source.get("interpolation", text)) {
+    checkChoice("interpolation", text);
+    params.deskew.interpolation = core::parseInterpolation(text);
+  }
+  source.get("smoothing_window", params.deskew.smoothing_window);
   source.get("exact", params.exact);
   if (params.exact)
     params.deskew.knot_interval = 0.0;
@@ -291,6 +301,7 @@ void DeskewParams::validate() const {
     checkNumber("knot_interval", deskew.knot_interval);
   else if (deskew.knot_interval != 0.0)
     throw core::InvalidInput("knot_interval", "must be 0 with exact: true");
+  checkNumber("smoothing_window", deskew.smoothing_window);
   checkNumber("tf_timeout", tf_timeout);
   checkNumber("max_tf_gap", max_tf_gap);
   checkNumber("max_extrapolation", max_extrapolation);

@@ -7,8 +7,10 @@
 //   deskew_simulate --scenario UTM-30LX/high/arc --bag out.bag --truth out.truth [--noise] [--seed N]
 //                   [--tf-rate HZ] [--tf-margin S] [--clockwise] [--duration S] [--stamp-error S |
 //                   --stamp-at-end] [--reversed] [--time-increment-factor F] [--zero-scan-time]
+//                   [--odom-noise R [--odom-seed N]]
 //   deskew_simulate --cloud-scenario VLP16/rough/arc --convention velodyne_first --bag out.bag
 //                   --truth out.truth [--noise] [--seed N] [--tf-rate HZ] [--duration S] [--latency S]
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -28,14 +30,18 @@ int usage(const char* program) {
       "       %s --scenario NAME --bag OUT.bag --truth OUT.truth [--noise] [--seed N] [--tf-rate HZ]\n"
       "          [--tf-margin S] [--clockwise] [--duration S] [--stamp-error S | --stamp-at-end]\n"
       "          [--reversed] [--time-increment-factor F] [--zero-scan-time]\n"
+      "          [--odom-noise R [--odom-seed N]]\n"
       "       %s --cloud-scenario NAME --convention NAME --bag OUT.bag --truth OUT.truth [--noise]\n"
       "          [--seed N] [--tf-rate HZ] [--duration S] [--latency S]\n"
       "  --list              the planar scenarios (LaserScan on /scan): the paper's, then calibration's\n"
-      "  --list-paper        the paper's 19 (docs/RESULTS.md)\n"
+      "  --list-paper        the paper's 19, then 5 LDS-01 ones in a small room (docs/RESULTS.md)\n"
       "  --list-calibration  the turns drives for timing calibration (SENSOR/normal|high/turns)\n"
       "  --list-clouds       the multi-line scenarios (PointCloud2 on /points, frame lidar)\n"
       "  --list-conventions  the drivers' cloud layouts for --convention\n"
       "  --tf-margin S       odometry from S before the first scan to S after the last (default 0.1)\n"
+      "  --odom-noise R      odometry (/tf odom -> base_link, /odom) off by R relative per 20 ms step in\n"
+      "                      x, y and yaw, a random walk away from the truth (default 0: perfect)\n"
+      "  --odom-seed N       seed of the odometry noise (default 1; --seed is the range noise's)\n"
       "timing faults of the /scan messages (planar scenarios only; recorded in the truth file):\n"
       "  --stamp-error S     header.stamp = true time of the earliest beam + S (time_offset = -S)\n"
       "  --stamp-at-end      stamped at the latest beam: S = (beams - 1) * true time_increment\n"
@@ -53,7 +59,7 @@ int main(int argc, char** argv) {
   using namespace lidar_deskew;
   std::string scenario_name, cloud_scenario_name, convention_name, bag_path, truth_path;
   bool clockwise = false, stamp_at_end = false, stamp_error_given = false, any_fault = false;
-  bool tf_margin_given = false;
+  bool tf_margin_given = false, odom_noise_given = false;
   double duration = 0.0;
   sim::SimBagOptions options;
   sim::CloudBagOptions cloud_options;
@@ -100,6 +106,12 @@ int main(int argc, char** argv) {
     } else if (arg == "--tf-margin" && has_value) {
       options.tf_margin = std::atof(argv[++a]);
       tf_margin_given = true;
+    } else if (arg == "--odom-noise" && has_value) {
+      options.odom_noise = std::atof(argv[++a]);
+      odom_noise_given = true;
+    } else if (arg == "--odom-seed" && has_value) {
+      options.odom_noise_seed = static_cast<unsigned>(std::strtoul(argv[++a], nullptr, 10));
+      odom_noise_given = true;
     } else if (arg == "--stamp-error" && has_value) {
       options.timing_fault.stamp_error = std::atof(argv[++a]);
       stamp_error_given = any_fault = true;
@@ -119,7 +131,7 @@ int main(int argc, char** argv) {
   const bool cloud = !cloud_scenario_name.empty();
   if (scenario_name.empty() == !cloud || bag_path.empty() || truth_path.empty())
     return usage(argv[0]);
-  if (cloud && (convention_name.empty() || clockwise || tf_margin_given))
+  if (cloud && (convention_name.empty() || clockwise || tf_margin_given || odom_noise_given))
     return usage(argv[0]);
   if (!cloud && !convention_name.empty())
     return usage(argv[0]);
@@ -129,6 +141,10 @@ int main(int argc, char** argv) {
   }
   if (!(options.tf_margin >= 0.0)) {
     std::fprintf(stderr, "--tf-margin must be >= 0 s\n");
+    return 2;
+  }
+  if (!(options.odom_noise >= 0.0) || !std::isfinite(options.odom_noise)) {
+    std::fprintf(stderr, "--odom-noise must be finite and >= 0\n");
     return 2;
   }
   if (cloud && any_fault) {

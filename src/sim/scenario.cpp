@@ -25,11 +25,26 @@ Scenario makeScenario(const LidarModel& lidar, const std::string& speed, const s
   const bool high = speed == "high";
   const double v = high ? 6.0 : 1.5;
   const double w = high ? 5.0 : 2.0;
-  // The paper mounts the laser off the rotation centre for the high-speed case.
-  scenario.mount = high ? Pose2{0.25, 0.05, 0.1} : Pose2{0.0, 0.0, 0.0};
-  scenario.start = {-10.0, 0.5, 0.0};
-  // About 8 scans for the 8 Hz sensor, 20 for the 40 Hz ones.
-  scenario.duration = lidar.rate < 20.0 ? 1.0 : 0.5;
+  if (lidar.range_max < 10.0f) {
+    // The LDS-01 reaches 3.5 m: World::smallRoom(), the laser 32 mm behind the base (TurtleBot3
+    // Burger), 8 scans. A line from the west half (3 m at normal speed with the odometry margins), a
+    // spin in the middle, an arc on a circle about the middle (radius v / w: 0.75 m, 1.2 m).
+    scenario.world = World::smallRoom();
+    scenario.mount = {-0.032, 0.0, 0.0};
+    scenario.duration = 8.0 / lidar.rate;
+    if (motion == "translation")
+      scenario.start = {-1.5, -0.4, 0.0};
+    else if (motion == "rotation")
+      scenario.start = {0.0, 0.0, 0.0};
+    else
+      scenario.start = {0.0, -v / w, 0.0};
+  } else {
+    // The paper mounts the laser off the rotation centre for the high-speed case.
+    scenario.mount = high ? Pose2{0.25, 0.05, 0.1} : Pose2{0.0, 0.0, 0.0};
+    scenario.start = {-10.0, 0.5, 0.0};
+    // About 8 scans for the 8 Hz sensor, 20 for the 40 Hz ones.
+    scenario.duration = lidar.rate < 20.0 ? 1.0 : 0.5;
+  }
   if (motion == "translation") {
     scenario.pieces = {{scenario.duration, v, 0.0, 0.0}};
   } else if (motion == "rotation") {
@@ -106,6 +121,13 @@ std::vector<Scenario> paperScenarios() {
     varying.pieces.push_back({0.04, speeds[k % 4], accelerations[k % 4], (k % 2 == 0) ? 4.0 : -4.0});
   }
   scenarios.push_back(varying);
+  // The LDS-01 in the small room, after the paper's: every motion that fits 8 scans (1.6 s) in 5 x 4 m.
+  // At 6 m/s a straight line would need 12 m with the odometry margins: no LDS-01/high/translation.
+  const LidarModel lds01 = LidarModel::lds01();
+  for (const std::string motion : {"translation", "rotation", "arc"})
+    scenarios.push_back(makeScenario(lds01, "normal", motion));
+  for (const std::string motion : {"rotation", "arc"})
+    scenarios.push_back(makeScenario(lds01, "high", motion));
   return scenarios;
 }
 
@@ -159,6 +181,8 @@ void writeTruth(const Truth& truth, const std::string& path) {
   out << "zero_scan_time " << (truth.timing_fault.zero_scan_time ? 1 : 0) << "\n";
   out << "beam_period " << truth.beam_period << "\n";
   out << "sweep_period " << truth.sweep_period << "\n";
+  out << "odom_noise " << truth.odom_noise << "\n";
+  out << "odom_noise_seed " << truth.odom_noise_seed << "\n";
   truth_text::writeMotion(out, truth.start, truth.pieces);
   for (const Segment& segment : truth.world.segments()) {
     out << "wall " << segment.a.x() << " " << segment.a.y() << " " << segment.b.x() << " " << segment.b.y()
@@ -197,6 +221,10 @@ Truth readTruth(const std::string& path) {
       return static_cast<bool>(fields >> truth.beam_period);
     if (key == "sweep_period")
       return static_cast<bool>(fields >> truth.sweep_period);
+    if (key == "odom_noise")
+      return static_cast<bool>(fields >> truth.odom_noise);
+    if (key == "odom_noise_seed")
+      return static_cast<bool>(fields >> truth.odom_noise_seed);
     if (key == "wall") {
       double ax, ay, bx, by;
       const bool ok = static_cast<bool>(fields >> ax >> ay >> bx >> by);

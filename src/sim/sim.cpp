@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 #include <stdexcept>
+#include <string>
 
 namespace lidar_deskew::sim {
 namespace {
@@ -43,6 +44,11 @@ Eigen::Vector2d Pose2::applyInverse(const Eigen::Vector2d& global) const {
   const double c = std::cos(yaw), s = std::sin(yaw);
   const double dx = global.x() - x, dy = global.y() - y;
   return {c * dx + s * dy, -s * dx + c * dy};
+}
+
+Pose2 Pose2::between(const Pose2& later) const {
+  const Eigen::Vector2d position = applyInverse(Eigen::Vector2d(later.x, later.y));
+  return {position.x(), position.y(), std::remainder(later.yaw - yaw, 2.0 * M_PI)};
 }
 
 void World::addPolygon(const std::vector<Eigen::Vector2d>& corners) {
@@ -207,6 +213,58 @@ Pose2 PiecewiseTrajectory::pose(double t) const {
 double PiecewiseTrajectory::speed(double t) const {
   const std::size_t k = pieceAt(t);
   return pieces_[k].speed + pieces_[k].acceleration * (t - begin_times_[k]);
+}
+
+NoisyOdometry::NoisyOdometry(const Trajectory& truth, double begin_time, double end_time,
+                             double relative_noise, unsigned seed)
+    : truth_(truth), begin_time_(begin_time), relative_noise_(relative_noise) {
+  if (!std::isfinite(relative_noise) || relative_noise < 0.0)
+    throw std::invalid_argument("odom_noise: must be finite and >= 0");
+  if (!std::isfinite(begin_time) || !std::isfinite(end_time) || end_time < begin_time)
+    throw std::invalid_argument("odometry times: must be finite, end >= begin");
+  const auto steps = std::max<std::size_t>(
+      1, static_cast<std::size_t>(std::ceil((end_time - begin_time) / kStepDuration - 1e-9)));
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  factors_.resize(steps);
+  step_truth_.push_back(truth.pose(begin_time));
+  step_odometry_.push_back(step_truth_.front());
+  for (std::size_t j = 0; j < steps; ++j) {
+    Factors& factors = factors_[j];
+    if (relative_noise > 0.0) {
+      factors.x = 1.0 + relative_noise * normal(rng);
+      factors.y = 1.0 + relative_noise * normal(rng);
+      factors.yaw = 1.0 + relative_noise * normal(rng);
+    }
+    const Pose2 next_truth = truth.pose(stepStart(j + 1));
+    const Pose2 increment = step_truth_[j].between(next_truth);
+    step_odometry_.push_back(step_odometry_[j].compose(
+        {increment.x * factors.x, increment.y * factors.y, increment.yaw * factors.yaw}));
+    step_truth_.push_back(next_truth);
+  }
+}
+
+std::size_t NoisyOdometry::stepAt(double t) const {
+  const double steps_since_begin = (t - begin_time_) / kStepDuration;
+  // A time on a grid point (up to rounding) starts its step; the grid's last point ends the last step.
+  if (!(steps_since_begin >= -1e-9 && steps_since_begin <= static_cast<double>(steps()) + 1e-9))
+    throw std::out_of_range("odometry: time " + std::to_string(t) + " s outside its steps");
+  const double step = std::floor(std::max(0.0, steps_since_begin + 1e-9));
+  return std::min(static_cast<std::size_t>(step), steps() - 1);
+}
+
+Pose2 NoisyOdometry::pose(double t) const {
+  const std::size_t j = stepAt(t);
+  if (relative_noise_ == 0.0)
+    return truth_.pose(t);
+  const Pose2 increment = step_truth_[j].between(truth_.pose(t));
+  const Factors& factors = factors_[j];
+  return step_odometry_[j].compose(
+      {increment.x * factors.x, increment.y * factors.y, increment.yaw * factors.yaw});
+}
+
+NoisyOdometry::Factors NoisyOdometry::factors(double t) const {
+  return factors_[stepAt(t)];
 }
 
 float LidarModel::angleIncrement() const {

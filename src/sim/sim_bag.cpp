@@ -58,6 +58,9 @@ void writeSimulationBag(const sim::Scenario& scenario, const SimBagOptions& opti
   const double tf_begin =
       -std::ceil((options.tf_margin + claimed_before) * options.tf_rate - 1e-9) / options.tf_rate;
   const double tf_end = scenario.duration + scan_period + claimed_after + options.tf_margin;
+  // What the odometry reports, in 20 ms steps from the first sample (throws for a bad odom_noise).
+  const sim::NoisyOdometry odometry_motion(trajectory, tf_begin, tf_end, options.odom_noise,
+                                           options.odom_noise_seed);
 
   rosbag::Bag bag(bag_path, rosbag::bagmode::Write);
 
@@ -72,7 +75,7 @@ void writeSimulationBag(const sim::Scenario& scenario, const SimBagOptions& opti
     const double t = tfTime(k);
     tf2_msgs::TFMessage transforms;
     transforms.transforms.push_back(
-        stamped(options.fixed_frame, options.base_frame, at(t), trajectory.pose(t)));
+        stamped(options.fixed_frame, options.base_frame, at(t), odometry_motion.pose(t)));
     bag.write("/tf", toRosTime(at(t)), transforms);
 
     nav_msgs::Odometry odometry;
@@ -83,8 +86,9 @@ void writeSimulationBag(const sim::Scenario& scenario, const SimBagOptions& opti
     odometry.pose.pose.position.y = pose.translation.y;
     odometry.pose.pose.position.z = pose.translation.z;
     odometry.pose.pose.orientation = pose.rotation;
-    odometry.twist.twist.linear.x = trajectory.speed(t);
-    odometry.twist.twist.angular.z = trajectory.yawRate(t);
+    const sim::NoisyOdometry::Factors factors = odometry_motion.factors(t);
+    odometry.twist.twist.linear.x = trajectory.speed(t) * factors.x;
+    odometry.twist.twist.angular.z = trajectory.yawRate(t) * factors.yaw;
     bag.write("/odom", toRosTime(at(t)), odometry);
   };
 
@@ -136,6 +140,8 @@ void writeSimulationBag(const sim::Scenario& scenario, const SimBagOptions& opti
   truth.timing_fault = fault;
   truth.beam_period = static_cast<double>(scenario.lidar.timeIncrement());
   truth.sweep_period = scan_period;
+  truth.odom_noise = options.odom_noise;
+  truth.odom_noise_seed = options.odom_noise_seed;
   sim::writeTruth(truth, truth_path);
 }
 

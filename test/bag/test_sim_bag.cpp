@@ -3,6 +3,7 @@
 // simulateScan with the same fault), record times never precede stamps, odometry covers the beam
 // times both as true and as claimed, and the truth file holds the fault and the true periods.
 #include <gtest/gtest.h>
+#include <nav_msgs/Odometry.h>
 #include <rosbag/bag.h>
 #include <rosbag/view.h>
 #include <sensor_msgs/LaserScan.h>
@@ -20,7 +21,9 @@ namespace {
 struct Recorded {
   std::vector<sensor_msgs::LaserScan> scans;
   std::vector<core::TimeNs> scan_record_times;
-  std::vector<core::TimeNs> tf_times;      // [ns] stamps of odom -> base_link
+  std::vector<core::TimeNs> tf_times;  // [ns] stamps of odom -> base_link
+  std::vector<Pose2> tf_poses;         // odom -> base_link, its yaw from the quaternion
+  std::vector<nav_msgs::Odometry> odometry;
   std::vector<core::TimeNs> record_times;  // of every message, in file order
 };
 
@@ -34,8 +37,14 @@ Recorded readBag(const std::string& path) {
       recorded.scan_record_times.push_back(static_cast<core::TimeNs>(message.getTime().toNSec()));
     } else if (message.getTopic() == "/tf") {
       const tf2_msgs::TFMessage::ConstPtr transforms = message.instantiate<tf2_msgs::TFMessage>();
-      for (const auto& transform : transforms->transforms)
+      for (const auto& transform : transforms->transforms) {
         recorded.tf_times.push_back(static_cast<core::TimeNs>(transform.header.stamp.toNSec()));
+        const auto& q = transform.transform.rotation;
+        recorded.tf_poses.push_back({transform.transform.translation.x, transform.transform.translation.y,
+                                     2.0 * std::atan2(q.z, q.w)});
+      }
+    } else if (message.getTopic() == "/odom") {
+      recorded.odometry.push_back(*message.instantiate<nav_msgs::Odometry>());
     }
   }
   return recorded;
@@ -150,10 +159,81 @@ TEST(SimBag, NoPeriodAtAll) {
   checkFaultedBag(findScenario("UTM-30LX-270/normal/turns"), fault, "no_period");
 }
 
+// Odometry noise (10 % per 20 ms step) on the LDS-01 arc with range noise and tf at 40 Hz (every other
+// sample between the odometry's grid points): the scans are bit-equal to those of perfect odometry;
+// with perfect odometry /tf is the truth (x, y exactly, yaw through the quaternion); with noise /tf and
+// /odom carry NoisyOdometry's poses (same start, steps and seed) and the true twist times the step's
+// factors, and drift away from the truth; the truth file keeps the true motion and records the noise.
+TEST(SimBag, OdometryNoise) {
+  const Scenario scenario = findScenario("LDS-01/normal/arc");
+  const std::string stem = ::testing::TempDir() + "/sim_odometry";
+  SimBagOptions options;
+  options.noise = true;
+  options.seed = 5;
+  options.tf_rate = 40.0;
+  writeSimulationBag(scenario, options, stem + "_perfect.bag", stem + "_perfect.truth");
+  options.odom_noise = 0.1;
+  options.odom_noise_seed = 9;
+  writeSimulationBag(scenario, options, stem + "_noisy.bag", stem + "_noisy.truth");
+  const Recorded perfect = readBag(stem + "_perfect.bag"), noisy = readBag(stem + "_noisy.bag");
+
+  ASSERT_EQ(perfect.scans.size(), 8u);
+  ASSERT_EQ(noisy.scans.size(), perfect.scans.size());
+  for (std::size_t k = 0; k < perfect.scans.size(); ++k)
+    EXPECT_EQ(noisy.scans[k].ranges, perfect.scans[k].ranges) << k;
+
+  const PiecewiseTrajectory trajectory = scenario.trajectory();
+  ASSERT_EQ(perfect.tf_times, noisy.tf_times);
+  ASSERT_EQ(noisy.odometry.size(), noisy.tf_times.size());
+  const auto seconds = [&](core::TimeNs time) { return core::nsToSeconds(time - options.epoch); };
+  const double first = -0.1;  // tf_margin before the first scan
+  const NoisyOdometry model(trajectory, first, seconds(noisy.tf_times.back()), 0.1, 9);
+  double drift = 0.0;
+  for (std::size_t k = 0; k < noisy.tf_times.size(); ++k) {
+    // The writer's sample time (the stamp is its ns rounding): the first sample, then every 1 / 40 s.
+    const double t = -4.0 / 40.0 + static_cast<double>(k) / 40.0;
+    EXPECT_NEAR(seconds(noisy.tf_times[k]), t, 1e-9) << k;
+    const Pose2 truth = trajectory.pose(t);
+    EXPECT_EQ(perfect.tf_poses[k].x, truth.x) << k;
+    EXPECT_EQ(perfect.tf_poses[k].y, truth.y) << k;
+    EXPECT_NEAR(std::remainder(perfect.tf_poses[k].yaw - truth.yaw, 2.0 * M_PI), 0.0, 1e-12) << k;
+    EXPECT_EQ(perfect.odometry[k].twist.twist.linear.x, 1.5);
+    EXPECT_EQ(perfect.odometry[k].twist.twist.angular.z, 2.0);
+
+    const Pose2 expected = model.pose(t);
+    EXPECT_NEAR(noisy.tf_poses[k].x, expected.x, 1e-9) << k;
+    EXPECT_NEAR(noisy.tf_poses[k].y, expected.y, 1e-9) << k;
+    EXPECT_NEAR(std::remainder(noisy.tf_poses[k].yaw - expected.yaw, 2.0 * M_PI), 0.0, 1e-9) << k;
+    EXPECT_EQ(noisy.odometry[k].pose.pose.position.x, noisy.tf_poses[k].x);
+    const NoisyOdometry::Factors factors = model.factors(t);
+    EXPECT_NEAR(noisy.odometry[k].twist.twist.linear.x, 1.5 * factors.x, 1e-12) << k;
+    EXPECT_NEAR(noisy.odometry[k].twist.twist.angular.z, 2.0 * factors.yaw, 1e-12) << k;
+    drift = std::max(drift, std::hypot(noisy.tf_poses[k].x - truth.x, noisy.tf_poses[k].y - truth.y));
+  }
+  std::printf("odometry 10 %% per step: largest drift from the truth %.1f mm over %.1f s\n", 1e3 * drift,
+              seconds(noisy.tf_times.back()) - first);
+  EXPECT_GT(drift, 0.001);
+
+  const Truth truth = readTruth(stem + "_noisy.truth");
+  EXPECT_EQ(truth.odom_noise, 0.1);
+  EXPECT_EQ(truth.odom_noise_seed, 9u);
+  EXPECT_EQ(truth.start.y, scenario.start.y);
+  ASSERT_EQ(truth.pieces.size(), 1u);
+  EXPECT_EQ(truth.pieces[0].yaw_rate, 2.0);
+  EXPECT_EQ(readTruth(stem + "_perfect.truth").odom_noise, 0.0);
+  for (const char* file : {"_perfect.bag", "_perfect.truth", "_noisy.bag", "_noisy.truth"})
+    std::remove((stem + file).c_str());
+}
+
 TEST(SimBag, InvalidOptionsAreRefused) {
   SimBagOptions options;
   options.timing_fault.time_increment_factor = -1.0;
   const std::string bag_path = ::testing::TempDir() + "/sim_invalid.bag";
+  EXPECT_THROW(
+      writeSimulationBag(findScenario("LDS-01/normal/turns"), options, bag_path, bag_path + ".truth"),
+      std::invalid_argument);
+  options = SimBagOptions();
+  options.odom_noise = -0.1;
   EXPECT_THROW(
       writeSimulationBag(findScenario("LDS-01/normal/turns"), options, bag_path, bag_path + ".truth"),
       std::invalid_argument);

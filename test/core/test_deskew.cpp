@@ -45,10 +45,13 @@ CaseResult runCase(const sim::SimulatedScan& simulated, const sim::Trajectory& t
   return result;
 }
 
-DeskewConfig withReference(Reference reference, double knot_interval = 0.005) {
+// tf2's own interpolation: these tests hold the knots to per-sample lookups of the samples given.
+DeskewConfig withReference(Reference reference, double knot_interval = 0.005,
+                           core::Interpolation interpolation = core::Interpolation::kLinear) {
   DeskewConfig config;
   config.reference = reference;
   config.knot_interval = knot_interval;
+  config.interpolation = interpolation;
   return config;
 }
 
@@ -185,6 +188,26 @@ TEST(Deskew, KnotsOnAContinuousArcStayWithinTheChordBound) {
   const double sagitta = speed * yaw_rate * knot_interval * knot_interval / 8.0;  // 94 um
   EXPECT_LT(knots.corrected.max, sagitta + 0.001 * kMm);
   EXPECT_GT(knots.corrected.max, 0.2 * sagitta);  // the bound is tight: the error is really there
+  EXPECT_LT(exact.corrected.max, 0.001 * kMm);
+}
+
+// Odometry at only 10 Hz on the 6 m/s, 5 rad/s arc: tf's straight line between samples is off the arc
+// by up to v w h^2 / 8 = 7.5 mm; the twist between samples is the arc itself, so only the knots' chord
+// (94 um at 5 ms) is left, and the exact mode (every beam from the fitted motion) has none.
+TEST(Deskew, TwistInterpolationFollowsTheArcBetweenSparseSamples) {
+  const sim::World world = sim::World::demoRoom();
+  const ArcTrajectory arc({-1.0, -0.5, 0.3}, 6.0, 5.0);
+  const Pose2 mount{0.25, 0.05, 0.1};
+  const LidarModel model = LidarModel::ild26tri();
+  const auto simulated = sim::simulateScan(world, arc, mount, model, kEpoch, 0.35);
+  const auto samples = test::sampleTrajectory(arc, kEpoch, 0.0, 0.8, 0.1);
+  const CaseResult linear = runCase(simulated, arc, mount, samples, withReference(Reference::kStart));
+  const CaseResult knots = runCase(simulated, arc, mount, samples,
+                                   withReference(Reference::kStart, 0.005, core::Interpolation::kTwist));
+  const CaseResult exact = runCase(simulated, arc, mount, samples,
+                                   withReference(Reference::kMiddle, 0.0, core::Interpolation::kTwist));
+  EXPECT_GT(linear.corrected.max, 3.0 * kMm);
+  EXPECT_LT(knots.corrected.max, 0.1 * kMm);
   EXPECT_LT(exact.corrected.max, 0.001 * kMm);
 }
 

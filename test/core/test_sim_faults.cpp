@@ -312,10 +312,10 @@ TEST(SimFaults, CalibrationScenariosAreListedApart) {
                                              "UTM-30LX/normal/turns", "UTM-30LX/high/turns",
                                              "UTM-30LX-270/normal/turns", "UTM-30LX-270/high/turns",
                                              "LDS-01/normal/turns", "LDS-01/high/turns"}));
-  EXPECT_EQ(paperScenarios().size(), 19u);
+  EXPECT_EQ(paperScenarios().size(), 24u);
   for (const Scenario& scenario : paperScenarios())
     EXPECT_NE(scenario.motion, "turns") << scenario.name;
-  EXPECT_EQ(planarScenarios().size(), 27u);
+  EXPECT_EQ(planarScenarios().size(), 32u);
   for (const std::string& name : names)
     EXPECT_EQ(findScenario(name).name, name);
   EXPECT_EQ(findScenario("LDS-01/high/turns").lidar.rate, 5.0);

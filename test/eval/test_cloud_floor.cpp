@@ -41,8 +41,10 @@ CloudEvaluation simulateAndEvaluate(const std::string& scenario, bool noise) {
 }
 
 // Noise off, the floor is the truth itself: the recorded points moved with the true motion lie on the
-// true surfaces up to the float32 coordinates and time fields (< 0.05 mm everywhere), while ours keeps
-// tf's straight line between its 50 Hz samples (0.5-0.6 mm RMS here): the floor does not follow tf.
+// true surfaces up to the float32 coordinates and time fields (< 0.05 mm everywhere). Ours follows the
+// twist between tf's 50 Hz samples: on the arc that is the arc (what is left is the 5 ms knots' chord,
+// 0.04 mm RMS); on rough ground (z, pitch and roll oscillating at 1.7-3 Hz) the twist changes within each
+// sample interval, which tf's samples do not show (0.5 mm RMS, as tf's own straight line).
 TEST(CloudFloor, NoiseOffTheFloorIsTheTruth) {
   for (const char* scenario : {"VLP16/high/arc", "OS1-64/rough/arc"}) {
     const CloudEvaluation result = simulateAndEvaluate(scenario, false);
@@ -51,7 +53,8 @@ TEST(CloudFloor, NoiseOffTheFloorIsTheTruth) {
     EXPECT_EQ(result.truth_corrected.count, result.ours.count) << scenario;
     EXPECT_LT(result.truth_corrected.rms, 0.05) << scenario;
     EXPECT_LT(result.truth_corrected.max, 0.05) << scenario;
-    EXPECT_GT(result.ours.rms, 0.3) << scenario;
+    EXPECT_LT(result.ours.rms, std::string(scenario) == "VLP16/high/arc" ? 0.1 : 1.0) << scenario;
+    EXPECT_GT(result.ours.rms, result.truth_corrected.rms) << scenario;  // the floor is below: it is truth
     EXPECT_GT(result.raw.rms, 100.0) << scenario;
   }
 }
@@ -73,8 +76,9 @@ TEST(CloudFloor, NoiseOnOursIsAtTheFloor) {
       EXPECT_EQ(result.range_sigma_mm, 30.0) << scenario;
       EXPECT_EQ(floor.count, result.ours.count) << scenario;
       EXPECT_LT(floor.rms, result.range_sigma_mm) << scenario;
-      EXPECT_LE(floor.rms, result.ours.rms) << scenario;
-      EXPECT_LE(floor.rms, result.per_point.rms) << scenario;
+      // Where the motion is followed exactly (the arc) ours and the floor agree to 1 um either way.
+      EXPECT_LE(floor.rms, result.ours.rms + 1e-3) << scenario;
+      EXPECT_LE(floor.rms, result.per_point.rms + 1e-3) << scenario;
       EXPECT_GE(floor.rms, 0.9 * standing.truth_corrected.rms) << scenario;
       EXPECT_LE(result.ours.rms, 1.02 * floor.rms) << scenario;
       // The two-pose correction is measurably above the floor on both (its chord, 13-15 mm noise off).

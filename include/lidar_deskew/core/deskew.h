@@ -11,16 +11,32 @@
 #include <Eigen/Core>
 
 #include <cstdint>
+#include <string>
 #include <vector>
 
 #include "lidar_deskew/core/motion.h"
 #include "lidar_deskew/core/scan.h"
+#include "lidar_deskew/core/twist_motion.h"
 
 namespace lidar_deskew::core {
+
+/// How the base moves between the motion source's samples.
+enum class Interpolation {
+  kLinear,  ///< as tf2 answers: translation linear, rotation by slerp (a chord where the robot drives an arc)
+  kTwist    ///< TwistMotion: the twist between samples, fit over their neighbours, integrated on SE(3)
+};
+/// Parses "linear" | "twist". Throws InvalidInput("interpolation") otherwise.
+Interpolation parseInterpolation(const std::string& text);
+const char* interpolationName(Interpolation interpolation);
 
 struct DeskewConfig {
   /// The time all points are re-expressed at.
   Reference reference = Reference::kStart;
+  /// Motion between the source's samples (a source without sample times is used as it answers).
+  Interpolation interpolation = Interpolation::kTwist;
+  /// [s] kTwist: the longest time over which the twists of sample intervals are fit together when the
+  /// samples are noisy (TwistMotion); 0 follows every sample.
+  double smoothing_window = 0.6;
   /// [s] spacing of the interpolation knots: the motion source is queried at the sweep's first and
   /// last beam, at its own sample times (MotionSource::appendSampleTimes) and, unless those are all
   /// of its motion (MotionSource::sampleTimesComplete), every knot_interval between; beams between
@@ -28,7 +44,8 @@ struct DeskewConfig {
   /// 0 = exact mode: one motion query and one MRPT composition per beam (for verification).
   double knot_interval = 0.005;
 
-  /// Throws InvalidInput("knot_interval") when negative, not finite, or outside [1e-5, 1] s (0 = exact).
+  /// Throws InvalidInput("knot_interval") when negative, not finite, or outside [1e-5, 1] s (0 = exact);
+  /// InvalidInput("smoothing_window") outside [0, 10] s.
   void validate() const;
 };
 
@@ -126,6 +143,10 @@ class KnotTrajectory {
     // planar case: left_rotation = Rot_z(left_yaw), Exp(s angle axis) = Rot_z(s yaw_step)
     double left_yaw_cos, left_yaw_sin;
     double yaw_step;  // [rad] signed
+    // screw segments (the source moves with a constant body twist between knots, planar): p(s) = p_k +
+    // (R(s) - R_k) screw_offset instead of the straight line; translation_step is then 0.
+    bool screw = false;
+    Eigen::Vector3d screw_offset = Eigen::Vector3d::Zero();  // [m], in the frame of left_translation
     // transformAt(): with K the cross-product matrix of the axis, sin and versin of s angle,
     //   rotation    = left_rotation (I + sin K + versin K^2) R_M = rotation_base + sin rotation_sine + versin
     //   rotation_versine translation = left_rotation (I + sin K + versin K^2) p_M + left_translation + s
@@ -184,6 +205,8 @@ class ScanDeskewer {
 
  private:
   void updateBeamDirections(const PlanarScan& scan);
+  /// The motion to correct [begin, end] with: `motion` itself (linear), or twist_ fit to it.
+  const MotionSource& motionFor(const MotionSource& motion, TimeNs begin, TimeNs end);
   // deskew() / deskewPoints() without the clean-up on failure
   void correctScan(const PlanarScan& scan, const BeamTiming& timing, const mrpt::poses::CPose3D& mount,
                    const MotionSource& motion, DeskewedScan& out);
@@ -192,6 +215,7 @@ class ScanDeskewer {
                         std::vector<Eigen::Vector3d>& corrected);
 
   DeskewConfig config_;
+  TwistMotion twist_;
   KnotTrajectory trajectory_;
   // unit beam directions of the last angle grid seen
   float grid_angle_min_ = 0.0f;

@@ -32,6 +32,11 @@ class MotionSource {
   /// reports, so knots there reproduce it exactly and no others are needed. Default: false.
   virtual bool sampleTimesComplete() const { return false; }
 
+  /// True when the source's motion is a constant body twist (a screw: an arc in the plane) between the
+  /// times appendSampleTimes reports: knots there, with screw segments between them, reproduce it
+  /// exactly (KnotTrajectory, planar motion). Default: false.
+  virtual bool screwsBetweenSamples() const { return false; }
+
   /// [ns] The longest interval between consecutive samples of the source that overlaps [begin, end]:
   /// the source interpolates across it linearly, whatever the robot did meanwhile. 0 for continuous
   /// sources (the default). Gaps before the first or after the last sample are not counted: there

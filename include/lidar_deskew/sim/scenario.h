@@ -30,7 +30,12 @@ struct Scenario {
 /// The paper's table: UTM-30LX 1440/360 deg/40 Hz, ILD26TRI 360/360 deg/8 Hz, UTM-30LX 1080/270 deg/
 /// 40 Hz; translation, rotation and both; normal speed (1.5 m/s, 2 rad/s, laser on the rotation centre)
 /// and high speed (6 m/s, 5 rad/s, laser 0.25 m ahead, 0.05 m left, turned 0.1 rad). Plus "varying":
-/// the ILD26TRI with speed and turn rate changing inside each scan. 19 scenarios.
+/// the ILD26TRI with speed and turn rate changing inside each scan. 19 scenarios. Then the LDS-01
+/// (360 beams, 5 Hz, 3.5 m) for 8 scans (1.6 s) in World::smallRoom(), laser 32 mm behind the base:
+/// "LDS-01/normal/translation" (from (-1.5, -0.4) heading +x), "LDS-01/normal/rotation" and
+/// "LDS-01/high/rotation" (in the middle), "LDS-01/normal/arc" and "LDS-01/high/arc" (circles about
+/// the middle, radius v / w = 0.75 m and 1.2 m) at the paper's speeds; no high-speed translation
+/// (9.6 m in 8 scans does not fit the room). 24 scenarios.
 std::vector<Scenario> paperScenarios();
 /// Recordings for estimating a sensor's timing (deskew_calibrate): motion "turns", a drive of about
 /// 14 s whose turn rate changes every 1 to 2 s (standing still, turning in place both ways, straight,
@@ -63,6 +68,10 @@ struct Truth {
   double beam_period = 0.0;
   /// [s] true time between scans, 1 / rate (0: not recorded, an older file).
   double sweep_period = 0.0;
+  /// The bag's odometry error (sim::NoisyOdometry's relative_noise; 0 = perfect odometry, as in files
+  /// written before it existed) and the seed of its generator. The motion above stays the true one.
+  double odom_noise = 0.0;
+  unsigned odom_noise_seed = 0;
 
   PiecewiseTrajectory trajectory() const { return PiecewiseTrajectory(start, pieces); }
   /// True laser pose in the world at bag time `time` [ns].
@@ -76,7 +85,7 @@ struct Truth {
 /// Writes / reads the ground-truth file (a small line-based text format, full double precision).
 /// The timing lines: "time_offset S" (= -stamp_error), "reversed 0|1", "time_increment_factor F",
 /// "zero_scan_time 0|1", "beam_period S", "sweep_period S"; absent in older files, which read as no
-/// fault and periods 0.
+/// fault and periods 0. The odometry lines "odom_noise R", "odom_noise_seed N"; absent: 0 (perfect).
 /// read throws std::runtime_error naming the file and line on malformed input.
 void writeTruth(const Truth& truth, const std::string& path);
 Truth readTruth(const std::string& path);

@@ -37,6 +37,8 @@ struct Pose2 {
   Eigen::Vector2d apply(const Eigen::Vector2d& local) const;
   /// A point given in the parent frame, in this pose's frame.
   Eigen::Vector2d applyInverse(const Eigen::Vector2d& global) const;
+  /// `later` in this pose's frame: this^-1 (+) later, its yaw difference wrapped to [-pi, pi].
+  Pose2 between(const Pose2& later) const;
 };
 
 /// A wall: the line segment from a to b [m].
@@ -150,6 +152,53 @@ class PiecewiseTrajectory final : public Trajectory {
   std::vector<MotionPiece> pieces_;
   std::vector<Pose2> starts_;        // pose at the start of each piece
   std::vector<double> begin_times_;  // [s]
+};
+
+/// Wheel odometry of a robot driving `truth`: the true motion integrated with a relative error per
+/// step (encoder quantisation, slip), so that it walks away from the truth at random.
+///
+/// The model: steps of kStepDuration (20 ms) on a fixed grid s_j = begin_time + j * kStepDuration.
+/// Step j's true body-frame increment is the relative pose d_j = truth(s_j)^-1 (+) truth(s_j+1) =
+/// (dx, dy, dyaw); the odometry measures it as (dx f_x, dy f_y, dyaw f_yaw) with the step's factors
+/// f = 1 + relative_noise * n, n ~ N(0, 1) independent per step and per component (drawn from
+/// std::mt19937(seed), x then y then yaw, step after step). The odometry starts at the true pose at
+/// begin_time and composes the measured increments: odom(s_j+1) = odom(s_j) (+) measured d_j. Between
+/// grid points, for t in [s_j, s_j+1): odom(t) = odom(s_j) (+) (truth(s_j)^-1 (+) truth(t)) scaled by
+/// step j's factors. With relative_noise 0 the odometry is the truth: pose(t) is truth.pose(t), bit
+/// for bit. `truth` must outlive this object.
+class NoisyOdometry final : public Trajectory {
+ public:
+  static constexpr double kStepDuration = 0.02;  ///< [s]
+
+  /// The factors (1 + relative_noise * n) of one step.
+  struct Factors {
+    double x = 1.0;
+    double y = 1.0;
+    double yaw = 1.0;
+  };
+
+  /// Odometry over [begin_time, end_time] [s] (whole steps: up to the first grid point at or after
+  /// end_time). Throws std::invalid_argument if relative_noise is negative or not finite, or the times
+  /// are not finite or end_time < begin_time.
+  NoisyOdometry(const Trajectory& truth, double begin_time, double end_time, double relative_noise,
+                unsigned seed);
+  /// The odometry's pose at t [s]; throws std::out_of_range outside the steps.
+  Pose2 pose(double t) const override;
+  /// The factors of the step that holds t [s] (all 1 without noise); throws like pose().
+  Factors factors(double t) const;
+  /// [s] start of step j.
+  double stepStart(std::size_t j) const { return begin_time_ + static_cast<double>(j) * kStepDuration; }
+  std::size_t steps() const { return factors_.size(); }
+
+ private:
+  std::size_t stepAt(double t) const;
+
+  const Trajectory& truth_;
+  double begin_time_;
+  double relative_noise_;
+  std::vector<Factors> factors_;      // per step
+  std::vector<Pose2> step_truth_;     // truth(s_j)
+  std::vector<Pose2> step_odometry_;  // odom(s_j)
 };
 
 /// A rotating 2D LIDAR. Beams are evenly spaced in angle and in time: one revolution per scan period.

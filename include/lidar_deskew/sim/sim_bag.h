@@ -20,18 +20,27 @@ struct SimBagOptions {
   TimingFault timing_fault;
   /// [s] odometry starts this long before the first scan and ends this long after the last one.
   double tf_margin = 0.1;
+  /// Relative error of the odometry per 20 ms step (sim::NoisyOdometry, its steps starting at the first
+  /// odometry sample): 0 = perfect odometry, the true pose; 0.1 = each step's x, y and yaw increments
+  /// off by 10 % (one sigma). The scans are unaffected (cast from the true pose, their noise drawn
+  /// from their own generator).
+  double odom_noise = 0.0;
+  unsigned odom_noise_seed = 1;  ///< of the odometry's generator
 };
 
 /// Simulates `scenario` in its world and writes `bag_path` with
 /// - /scan (sensor_msgs/LaserScan): stamped at the first beam (or as options.timing_fault says),
 ///   recorded at the scan's end (or at its stamp, if that is later);
-/// - /tf (tf2_msgs/TFMessage): fixed -> base at tf_rate, the true pose (perfect odometry), from
-///   tf_margin before the first scan to tf_margin after the last, both as the scans truly are and as
-///   their (faulted) messages claim;
+/// - /tf (tf2_msgs/TFMessage): fixed -> base at tf_rate, the odometry's pose (the true pose unless
+///   options.odom_noise > 0), from tf_margin before the first scan to tf_margin after the last, both as
+///   the scans truly are and as their (faulted) messages claim;
 /// - /tf_static: base -> laser (the mount), once;
-/// - /odom (nav_msgs/Odometry): the same poses with the commanded twist;
-/// and the matching truth file at `truth_path` (with the fault and the true beam and sweep periods).
-/// Throws on I/O errors, and std::invalid_argument for an invalid fault or a negative tf_margin.
+/// - /odom (nav_msgs/Odometry): the same poses with the commanded twist (its speed and yaw rate times
+///   the step's odometry factors);
+/// and the matching truth file at `truth_path` (the true motion, the fault, the true beam and sweep
+/// periods, the odometry noise and its seed).
+/// Throws on I/O errors, and std::invalid_argument for an invalid fault, a negative tf_margin or
+/// odom_noise.
 void writeSimulationBag(const sim::Scenario& scenario, const SimBagOptions& options,
                         const std::string& bag_path, const std::string& truth_path);
 

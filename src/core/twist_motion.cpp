@@ -1,0 +1,424 @@
+#include "lidar_deskew/core/twist_motion.h"
+
+#include <Eigen/Geometry>
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+#include "pose_eigen.h"
+
+namespace lidar_deskew::core {
+namespace {
+
+/// [s] Samples this long before the sweep also inform the noise estimate.
+constexpr double kNoiseHorizon = 1.0;
+/// Fewer intervals with a full set of neighbours than this: no noise estimate (samples followed).
+constexpr std::size_t kMinNoiseIntervals = 8;
+/// Median over intervals of the best simple model's standardised residual, for Gaussian noise of
+/// standard deviation 1 (the eleven residuals of estimateNoise below; 3e6 normal draws give 0.0857).
+constexpr double kResidualMedian = 0.0857;
+/// Twist differences below these over an interval move a point by less than 0.01 mm (1e-6 rad at
+/// 10 m): counted as exact.
+constexpr double kFloorDisplacement = 1e-5;  // [m]
+constexpr double kFloorAngle = 1e-6;         // [rad]
+/// Standard normal quantile of the line test (one-sided 99.9 %).
+constexpr double kTestQuantile = 3.09;
+
+Eigen::Matrix3d skew(const Eigen::Vector3d& v) {
+  Eigen::Matrix3d k;
+  k << 0.0, -v.z(), v.y(), v.z(), 0.0, -v.x(), -v.y(), v.x(), 0.0;
+  return k;
+}
+
+/// sin(t)/t, (1-cos t)/t^2, (t-sin t)/t^3 for t = |phi|, with series near 0.
+void expCoefficients(double angle, double& a, double& b, double& c) {
+  const double t2 = angle * angle;
+  if (t2 < 1e-6) {
+    a = 1.0 - t2 / 6.0 * (1.0 - t2 / 20.0);
+    b = 0.5 - t2 / 24.0 * (1.0 - t2 / 30.0);
+    c = 1.0 / 6.0 - t2 / 120.0 * (1.0 - t2 / 42.0);
+  } else {
+    a = std::sin(angle) / angle;
+    b = (1.0 - std::cos(angle)) / t2;
+    c = (angle - std::sin(angle)) / (t2 * angle);
+  }
+}
+
+/// Chi-square quantile for `dof` degrees of freedom at kTestQuantile (Wilson-Hilferty).
+double lineTestLimit(double dof) {
+  const double k = 2.0 / (9.0 * dof);
+  const double root = 1.0 - k + kTestQuantile * std::sqrt(k);
+  return dof * root * root * root;
+}
+
+/// Least-squares line y = alpha + beta x over running sums; residual sum of squares.
+struct LineSums {
+  double n = 0, sx = 0, sy = 0, sxx = 0, sxy = 0, syy = 0;
+  void add(double x, double y) {
+    n += 1;
+    sx += x;
+    sy += y;
+    sxx += x * x;
+    sxy += x * y;
+    syy += y * y;
+  }
+  /// False when the x do not span a line (fewer than two distinct values).
+  bool fit(double& alpha, double& beta, double& rss) const {
+    const double det = n * sxx - sx * sx;
+    if (!(det > 1e-30 * n * sxx))
+      return false;
+    beta = (n * sxy - sx * sy) / det;
+    alpha = (sy - beta * sx) / n;
+    rss = std::max(0.0, syy - alpha * sy - beta * sxy);
+    return true;
+  }
+};
+
+}  // namespace
+
+void se3Exp(const Twist& xi, Eigen::Matrix3d& rotation, Eigen::Vector3d& translation) {
+  const Eigen::Vector3d rho = xi.head<3>();
+  const Eigen::Vector3d phi = xi.tail<3>();
+  double a, b, c;
+  expCoefficients(phi.norm(), a, b, c);
+  const Eigen::Matrix3d k = skew(phi);
+  const Eigen::Matrix3d k2 = k * k;
+  rotation = Eigen::Matrix3d::Identity() + a * k + b * k2;
+  translation = rho + b * (k * rho) + c * (k2 * rho);
+}
+
+Twist se3Log(const Eigen::Matrix3d& rotation, const Eigen::Vector3d& translation) {
+  const Eigen::AngleAxisd angle_axis(rotation);
+  const double angle = angle_axis.angle();
+  const Eigen::Vector3d phi = angle * angle_axis.axis();
+  // V^-1 = I - K/2 + d K^2, d = (1 - a / (2 b)) / t^2 (-> 1/12 at 0)
+  double a, b, c;
+  expCoefficients(angle, a, b, c);
+  const double t2 = angle * angle;
+  const double d = t2 < 1e-6 ? 1.0 / 12.0 + t2 / 720.0 : (1.0 - a / (2.0 * b)) / t2;
+  const Eigen::Matrix3d k = skew(phi);
+  Twist xi;
+  xi.head<3>() = translation - 0.5 * (k * translation) + d * (k * (k * translation));
+  xi.tail<3>() = phi;
+  return xi;
+}
+
+Twist se3Bracket(const Twist& a, const Twist& b) {
+  Twist out;
+  out.head<3>() = a.tail<3>().cross(b.head<3>()) - b.tail<3>().cross(a.head<3>());
+  out.tail<3>() = a.tail<3>().cross(b.tail<3>());
+  return out;
+}
+
+TwistMotion::TwistMotion(double smoothing_window) : smoothing_window_(smoothing_window) {
+  if (!std::isfinite(smoothing_window) || smoothing_window < 0.0 || smoothing_window > 10.0) {
+    throw InvalidInput("smoothing_window", "must be in [0, 10] s, got " + std::to_string(smoothing_window));
+  }
+}
+
+bool TwistMotion::gatherSamples(const MotionSource& raw, TimeNs begin, TimeNs end) {
+  const double half = 0.5 * smoothing_window_;
+  times_.clear();
+  // appendSampleTimes gives times strictly inside; the margins include the samples bracketing the sweep.
+  const TimeNs horizon = secondsToNs(std::max(kNoiseHorizon, half));
+  raw.appendSampleTimes(begin - horizon - 1, end + horizon + 1, times_);
+  std::sort(times_.begin(), times_.end());
+  times_.erase(std::unique(times_.begin(), times_.end()), times_.end());
+  const auto after_begin = std::upper_bound(times_.begin(), times_.end(), begin);
+  const auto at_end = std::lower_bound(times_.begin(), times_.end(), end);
+  if (after_begin == times_.begin() || at_end == times_.end())
+    return false;
+  // After the sweep: the sample that closes it, and those within half the window.
+  times_.erase(std::upper_bound(at_end, times_.end(), std::max(*at_end, end + secondsToNs(half))),
+               times_.end());
+  const std::size_t first = static_cast<std::size_t>(after_begin - times_.begin()) - 1;
+  const std::size_t last = static_cast<std::size_t>(at_end - times_.begin());
+
+  // The source's answer at a sample time does not change once given: answers are kept for the next
+  // sweeps (which share most of their window), until time goes back (a bag loop, a clock reset).
+  if (begin < cache_begin_ || &raw != cache_source_)
+    cache_.clear();
+  cache_begin_ = begin;
+  cache_source_ = &raw;
+  const auto query = [&](std::size_t i, Sample& sample) {
+    const TimeNs time = times_[i];
+    const auto cached = std::lower_bound(cache_.begin(), cache_.end(), time,
+                                         [](const Sample& s, TimeNs t) { return s.time < t; });
+    if (cached != cache_.end() && cached->time == time) {
+      sample = *cached;
+      return true;
+    }
+    try {
+      const mrpt::poses::CPose3D pose = raw.basePose(time);
+      sample = {time, detail::rotationOf(pose), detail::translationOf(pose), Twist::Zero(), -1};
+    } catch (const MotionUnavailable&) {
+      return false;
+    }
+    cache_.insert(cached, sample);
+    return true;
+  };
+  // From the sweep's first sample outwards, stopping where the source no longer answers (a chain's
+  // links end at different times).
+  std::vector<Sample> before;
+  Sample sample;
+  for (std::size_t i = first + 1; i-- > 0;) {
+    if (!query(i, sample)) {
+      if (i == first)
+        return false;
+      break;
+    }
+    before.push_back(sample);
+  }
+  samples_.assign(before.rbegin(), before.rend());
+  for (std::size_t i = first + 1; i < times_.size(); ++i) {
+    if (!query(i, sample)) {
+      if (i <= last)
+        return false;
+      break;
+    }
+    samples_.push_back(sample);
+  }
+  // Forget what no later sweep's window reaches.
+  const TimeNs oldest = samples_.front().time;
+  cache_.erase(cache_.begin(), std::lower_bound(cache_.begin(), cache_.end(), oldest,
+                                                [](const Sample& s, TimeNs t) { return s.time < t; }));
+  return samples_.size() >= 2;
+}
+
+void TwistMotion::estimateNoise() {
+  const std::size_t count = means_.size();
+  noise_.setZero();
+  // The floor: twist differences that move a point by less than 0.01 mm over a typical interval.
+  scratch_.assign(durations_.begin(), durations_.end());
+  std::nth_element(scratch_.begin(), scratch_.begin() + static_cast<std::ptrdiff_t>(count / 2),
+                   scratch_.end());
+  const double typical = scratch_[count / 2];
+  floor_.head<3>().setConstant(kFloorDisplacement / typical);
+  floor_.tail<3>().setConstant(kFloorAngle / typical);
+  if (count < kMinNoiseIntervals + 10)
+    return;
+  // Each interval's mean against the best of the simplest local models that can hold it: constant over
+  // it and one neighbour, a line through three, a quartic through six (any stencil containing it); each
+  // residual divided by its standard deviation under unit noise. Steps, kinks and smooth curves of the
+  // true twist leave one of them exact or nearly; noise leaves all of them off. The residuals of each
+  // stencil are computed once, for all six components.
+  // step_[k]: |m_k+1 - m_k| / sqrt(2); chord_[k]: m_k from the line through k-1 and k+1; curve_[i]: m_i+5
+  // from the quartic through i..i+4 (Lagrange extrapolation: a smooth curve's twist, rough ground at
+  // 2-3 Hz, is explained by it to 0.2 % of its amplitude at 50 Hz).
+  step_.resize(count);
+  chord_.resize(count);
+  curve_.resize(count);
+  for (std::size_t k = 0; k + 1 < count; ++k)
+    step_[k] = (means_[k + 1] - means_[k]).cwiseAbs() / std::sqrt(2.0);
+  for (std::size_t k = 1; k + 1 < count; ++k) {
+    const double w_before = (centres_[k + 1] - centres_[k]) / (centres_[k + 1] - centres_[k - 1]);
+    const double w_after = 1.0 - w_before;
+    chord_[k] = (means_[k] - w_before * means_[k - 1] - w_after * means_[k + 1]).cwiseAbs() /
+                std::sqrt(1.0 + w_before * w_before + w_after * w_after);
+  }
+  for (std::size_t i = 0; i + 5 < count; ++i) {
+    Twist prediction = Twist::Zero();
+    double variance = 1.0;
+    for (std::size_t a = i; a < i + 5; ++a) {
+      double weight = 1.0;
+      for (std::size_t b = i; b < i + 5; ++b) {
+        if (b != a)
+          weight *= (centres_[i + 5] - centres_[b]) / (centres_[a] - centres_[b]);
+      }
+      prediction += weight * means_[a];
+      variance += weight * weight;
+    }
+    curve_[i] = (means_[i + 5] - prediction).cwiseAbs() / std::sqrt(variance);
+  }
+  for (int c = 0; c < 6; ++c) {
+    scratch_.clear();
+    for (std::size_t j = 5; j + 6 <= count; ++j) {
+      double e = std::min({step_[j - 1][c], step_[j][c], chord_[j - 1][c], chord_[j][c], chord_[j + 1][c]});
+      for (std::size_t i = j - 5; i <= j; ++i)
+        e = std::min(e, curve_[i][c]);
+      scratch_.push_back(e);
+    }
+    const std::size_t middle = scratch_.size() / 2;
+    std::nth_element(scratch_.begin(), scratch_.begin() + static_cast<std::ptrdiff_t>(middle),
+                     scratch_.end());
+    noise_[c] = scratch_[middle] / kResidualMedian;
+  }
+}
+
+void TwistMotion::fitInterval(std::size_t j, int c, double& mean, double& slope) const {
+  const std::size_t count = means_.size();
+  const double variance = noise_[c] * noise_[c] + floor_[c] * floor_[c];
+  const double half = 0.5 * smoothing_window_;
+  const auto x = [&](std::size_t k) { return centres_[k] - centres_[j]; };
+  const auto y = [&](std::size_t k) { return means_[k][c]; };
+  mean = y(j);
+  slope = 0.0;
+
+  // Centred windows, widened one interval each side while a line still explains them.
+  bool any_line = false;
+  std::size_t lo = j, hi = j;
+  LineSums sums;
+  sums.add(0.0, y(j));
+  for (;;) {
+    bool grew = false;
+    if (lo > 0 && (hi - lo < 2 || -x(lo - 1) <= half)) {
+      --lo;
+      sums.add(x(lo), y(lo));
+      grew = true;
+    }
+    if (hi + 1 < count && (hi - lo < 2 || x(hi + 1) <= half)) {
+      ++hi;
+      sums.add(x(hi), y(hi));
+      grew = true;
+    }
+    if (!grew)
+      break;
+    if (hi - lo < 2)
+      continue;
+    double alpha, beta, rss;
+    if (!sums.fit(alpha, beta, rss) || rss > variance * lineTestLimit(sums.n - 2.0))
+      break;
+    mean = alpha;
+    slope = beta;
+    any_line = true;
+  }
+  if (any_line)
+    return;
+  // A change beside the interval: a line through it and two neighbours on one side.
+  double best_rss = INFINITY;
+  for (const int side : {-1, 1}) {
+    if ((side < 0 && j < 2) || (side > 0 && j + 2 >= count))
+      continue;
+    LineSums one_side;
+    for (int step = 0; step <= 2; ++step) {
+      const std::size_t k = static_cast<std::size_t>(static_cast<long>(j) + side * step);
+      one_side.add(x(k), y(k));
+    }
+    double alpha, beta, rss;
+    if (one_side.fit(alpha, beta, rss) && rss <= variance * lineTestLimit(1.0) && rss < best_rss) {
+      best_rss = rss;
+      mean = alpha;
+      slope = beta;
+    }
+  }
+}
+
+const MotionSource& TwistMotion::prepare(const MotionSource& raw, TimeNs begin, TimeNs end) {
+  raw_ = &raw;
+  pieces_.clear();
+  smoothed_intervals_ = 0;
+  screws_ = false;
+  if (!gatherSamples(raw, begin, end))
+    return raw;
+
+  // Interval mean twists.
+  const std::size_t intervals = samples_.size() - 1;
+  means_.resize(intervals);
+  durations_.resize(intervals);
+  centres_.resize(intervals);
+  for (std::size_t k = 0; k < intervals; ++k) {
+    const Sample& a = samples_[k];
+    const Sample& b = samples_[k + 1];
+    durations_[k] = nsToSeconds(b.time - a.time);
+    centres_[k] = nsToSeconds(a.time - samples_.front().time) + 0.5 * durations_[k];
+    if (a.mean_until != b.time) {  // not computed in an earlier sweep
+      const Eigen::Matrix3d relative_rotation = a.rotation.transpose() * b.rotation;
+      const Eigen::Vector3d relative_translation = a.rotation.transpose() * (b.translation - a.translation);
+      means_[k] = se3Log(relative_rotation, relative_translation) / durations_[k];
+      const auto cached = std::lower_bound(cache_.begin(), cache_.end(), a.time,
+                                           [](const Sample& s, TimeNs t) { return s.time < t; });
+      if (cached != cache_.end() && cached->time == a.time) {
+        cached->mean = means_[k];
+        cached->mean_until = b.time;
+      }
+    } else {
+      means_[k] = a.mean;
+    }
+  }
+  estimateNoise();
+
+  // The intervals the span touches: from the last sample at or before begin to the first at or after end.
+  std::size_t first = 0;
+  while (first + 1 < samples_.size() && samples_[first + 1].time <= begin)
+    ++first;
+  std::size_t last = first;
+  while (last + 1 < samples_.size() && samples_[last].time < end)
+    ++last;
+  if (last == first) {  // a span of one instant on a sample: the interval after it, else before
+    if (first + 1 < samples_.size())
+      ++last;
+    else
+      --first;
+  }
+
+  Eigen::Matrix3d rotation = samples_[first].rotation;
+  Eigen::Vector3d translation = samples_[first].translation;
+  screws_ = true;
+  for (std::size_t j = first; j < last; ++j) {
+    Piece piece;
+    piece.time = samples_[j].time;
+    piece.duration = durations_[j];
+    Twist mean, slope;
+    for (int c = 0; c < 6; ++c)
+      fitInterval(j, c, mean[c], slope[c]);
+    if (mean != means_[j] || !slope.isZero())
+      ++smoothed_intervals_;
+    // Omega(h) = mean h + h^3/12 [start, slope] should be the fitted mean's h: solve for the start
+    // twist (two fixed-point steps; the bracket is second order).
+    const double h = piece.duration;
+    Twist centre = mean;
+    for (int iteration = 0; iteration < 2; ++iteration)
+      centre = mean - (h * h / 12.0) * se3Bracket(centre, slope);
+    piece.start_twist = centre - 0.5 * h * slope;
+    piece.slope = slope;
+    screws_ = screws_ && slope.isZero();
+    piece.rotation = rotation;
+    piece.translation = translation;
+    pieces_.push_back(piece);
+    // The next piece starts where this one ends.
+    Eigen::Matrix3d step_rotation;
+    Eigen::Vector3d step_translation;
+    const Twist omega = piece.start_twist * h + piece.slope * (0.5 * h * h) +
+                        (h * h * h / 12.0) * se3Bracket(piece.start_twist, piece.slope);
+    se3Exp(omega, step_rotation, step_translation);
+    translation += rotation * step_translation;
+    rotation = rotation * step_rotation;
+  }
+  end_rotation_ = rotation;
+  end_translation_ = translation;
+  end_time_ = samples_[last].time;
+  return *this;
+}
+
+mrpt::poses::CPose3D TwistMotion::basePose(TimeNs time) const {
+  if (pieces_.empty() || time < pieces_.front().time || time > end_time_) {
+    throw MotionUnavailable(time, "time " + std::to_string(time) + " ns is outside the fitted motion");
+  }
+  if (time == end_time_)
+    return detail::poseOf(end_rotation_, end_translation_);
+  const auto after = std::upper_bound(pieces_.begin(), pieces_.end(), time,
+                                      [](TimeNs t, const Piece& piece) { return t < piece.time; });
+  const Piece& piece = *(after - 1);
+  const double tau = nsToSeconds(time - piece.time);
+  const Twist omega = piece.start_twist * tau + piece.slope * (0.5 * tau * tau) +
+                      (tau * tau * tau / 12.0) * se3Bracket(piece.start_twist, piece.slope);
+  Eigen::Matrix3d step_rotation;
+  Eigen::Vector3d step_translation;
+  se3Exp(omega, step_rotation, step_translation);
+  return detail::poseOf(piece.rotation * step_rotation,
+                        piece.translation + piece.rotation * step_translation);
+}
+
+void TwistMotion::appendSampleTimes(TimeNs begin, TimeNs end, std::vector<TimeNs>& times) const {
+  for (const Piece& piece : pieces_) {
+    if (piece.time > begin && piece.time < end)
+      times.push_back(piece.time);
+  }
+}
+
+TimeNs TwistMotion::longestGap(TimeNs begin, TimeNs end) const {
+  return raw_ ? raw_->longestGap(begin, end) : 0;
+}
+
+}  // namespace lidar_deskew::core
