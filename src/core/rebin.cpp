@@ -38,6 +38,11 @@ constexpr double kFlatToleranceMedians = 4.0;
 /// A step's far contour is continued behind the near one only where it runs at most this far along per
 /// metre sideways (walls seen up to about 72 deg off-normal): beyond, its end is too uncertain.
 constexpr double kMaxStepSlant = 3.0;
+/// [m] a step's far contour is continued (and two flat points farther apart than the gap joined) only where
+/// the error its end segment's noise gives over the continuation (the flat-point tolerance, times one plus
+/// the continuation's length in segment lengths) stays below this; otherwise the step is joined as before (a
+/// chord, or two contour ends).
+constexpr double kStepErrorBudget = 0.005;
 /// Two flat neighbours farther apart than the gap are one surface up to this many gaps apart.
 constexpr double kFlatJoinGaps = 3.0;
 /// A step, or a surface whose points are farther apart than the gap, bridges at most this many bins
@@ -300,8 +305,10 @@ void ScanRebinner::classifyLinks(const BinSweep& sweep) {
     const bool far_continues = far_side != kNoPoint && link_[far_side] == Link::kSurface;
     const bool adjacent =
         std::abs(wrapDelta(bearing_[q] - bearing_[j])) <= kMaxStepBins * sweep.absIncrement();
-    if (!far_continues || !adjacent || std::abs(range_[q] - range_[j]) <= flat_tolerance_)
+    if (!far_continues || !adjacent || std::abs(range_[q] - range_[j]) <= flat_tolerance_ ||
+        !continuationIsSure(far_is_next ? j : q, far_is_next ? q : j, far_is_next ? next_[q] : previous(j))) {
       link_[j] = joined_[j] ? Link::kChord : Link::kNone;
+    }
   }
 }
 
@@ -331,7 +338,8 @@ void ScanRebinner::traceContours(const Points& points, const BinSweep& sweep) {
         const std::size_t beyond = far_is_next ? next_[q] : previous(j);
         const double delta = wrapDelta(bearing_[far] - bearing_[near]);
         extendLine(points, far, x_[far] - x_[beyond], y_[far] - y_[beyond], kInfinity, range_[near],
-                   std::min(bearing_[near], bearing_[near] + delta), std::abs(delta), sweep, kMaxStepSlant);
+                   std::min(bearing_[near], bearing_[near] + delta), std::abs(delta), sweep, kMaxStepSlant,
+                   false, range_[far] + flat_tolerance_);
         break;
       }
     }
@@ -384,12 +392,23 @@ bool ScanRebinner::nearlyJoined(std::size_t a, std::size_t b, const BinSweep& sw
   const double abs_increment = sweep.absIncrement();
   const double dx = x_[b] - x_[a], dy = y_[b] - y_[a];
   const double limit = kFlatJoinGaps * joinGap(a, b, abs_increment);
-  return std::abs(wrapDelta(bearing_[b] - bearing_[a])) <= kMaxStepBins * abs_increment &&
+  // the flat test is evidence of one surface only when the noise is small against the error budget
+  return flat_tolerance_ <= kStepErrorBudget &&
+         std::abs(wrapDelta(bearing_[b] - bearing_[a])) <= kMaxStepBins * abs_increment &&
          dx * dx + dy * dy <= limit * limit;
 }
 
 double ScanRebinner::joinGap(std::size_t a, std::size_t b, double abs_increment) const {
   return config_.min_gap + config_.gap_factor * std::max(range_[a], range_[b]) * abs_increment;
+}
+
+bool ScanRebinner::continuationIsSure(std::size_t near, std::size_t far, std::size_t beyond) const {
+  if (beyond == kNoPoint)
+    return false;
+  const double segment = std::hypot(x_[far] - x_[beyond], y_[far] - y_[beyond]);
+  // [m] how far the continuation runs along a wall facing the sensor: to the near point's bearing
+  const double run = range_[far] * std::abs(wrapDelta(bearing_[far] - bearing_[near]));
+  return segment > 0.0 && flat_tolerance_ * (1.0 + run / segment) <= kStepErrorBudget;
 }
 
 std::size_t ScanRebinner::previous(std::size_t j) const {
@@ -445,7 +464,7 @@ void ScanRebinner::crossSegment(double ax, double ay, double a_bearing, float a_
 
 void ScanRebinner::extendLine(const Points& points, std::size_t p, double dx, double dy, double reach,
                               double min_range, double low, double width, const BinSweep& sweep,
-                              double max_slant, bool only_empty) {
+                              double max_slant, bool only_empty, double max_range) {
   const double px = x_[p], py = y_[p];
   const double direction_norm = std::sqrt(dx * dx + dy * dy);
   if (direction_norm == 0.0)
@@ -462,7 +481,7 @@ void ScanRebinner::extendLine(const Points& points, std::size_t p, double dx, do
     if (along > reach)
       return;
     const double range = cross(px, py, dx, dy) / denominator;
-    if (range <= 0.0 || range < min_range)
+    if (range <= 0.0 || range < min_range || range > max_range)
       return;
     // slant: how far along the line per metre sideways (of the ray's angle from p, at p's range)
     if (max_slant > 0.0 && along > max_slant * std::abs(cross(px, py, ray_x, ray_y)) * 1.0000001)

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cstddef>
+#include <limits>
 #include <vector>
 
 #include "lidar_deskew/core/deskew.h"
@@ -54,8 +55,9 @@ class ScanRebinner {
   /// - a corner: where the lines of the two neighbouring segments meet between the points' bearings
   ///   (and within two segment lengths of both), the rays between meet the two walls up to that corner;
   /// - a depth step (a near contour ends, a far one continues behind it; joined or not): the rays
-  ///   between see the far contour's line continued behind the near one's end, never a chord through
-  ///   free space; the near contour is not extended towards it;
+  ///   between see the far contour's line continued behind the near one's end (no farther than the far
+  ///   point), never a chord through free space; the near contour is not extended towards it. Only where
+  ///   the scan's noise keeps that continuation within kStepErrorBudget (rebin.cpp); else as below;
   /// - other contour ends (next to a beam without a return, or the scan's end) follow the end segment's
   ///   line for up to half a bin; a lone point is a facet facing the sensor, half a bin to each side;
   /// - where several contours cross a ray (a fast spin folds the scan over itself), the nearest wins;
@@ -101,8 +103,12 @@ class ScanRebinner {
   /// [m] the RebinConfig gap for points a and b (at the larger of their ranges; a == b for a lone point).
   inline double joinGap(std::size_t a, std::size_t b, double abs_increment) const;
   /// Whether two flat neighbours a and b, farther apart than the gap, still make one surface: at most
-  /// kMaxStepBins apart in bearing and a few gaps apart in distance (a wall at a grazing angle).
+  /// kMaxStepBins apart in bearing and a few gaps apart in distance (a wall at a grazing angle), and the
+  /// scan's flat tolerance within kStepErrorBudget (with more noise, "flat" is no evidence).
   inline bool nearlyJoined(std::size_t a, std::size_t b, const BinSweep& sweep) const;
+  /// Whether a step's far contour (its end point `far`, the point `beyond` before it on that contour) can
+  /// be continued behind `near` within kStepErrorBudget given the scan's noise (flat_tolerance_).
+  inline bool continuationIsSure(std::size_t near, std::size_t far, std::size_t beyond) const;
   /// The point before j on its contour side (j's predecessor whose next_ is j), or kNoPoint.
   inline std::size_t previous(std::size_t j) const;
   /// Whether the corner of the line through (a0, a) and the line through (b, b1) lies between a and b.
@@ -113,12 +119,14 @@ class ScanRebinner {
   inline void crossSegment(double ax, double ay, double a_bearing, float a_intensity, double bx, double by,
                            double b_bearing, float b_intensity, const BinSweep& sweep);
   /// The line through point p along (dx, dy): offers the bins within [low, low + width] [rad] where their
-  /// ray meets it no farther than `reach` [m] from p and no nearer than `min_range` [m] from the sensor;
+  /// ray meets it no farther than `reach` [m] from p and no nearer than `min_range` [m] (nor farther than
+  /// `max_range` [m]) from the sensor;
   /// with max_slant > 0 also no farther along the line than max_slant times p's distance from the ray;
   /// with only_empty only bins nothing has reached yet.
   inline void extendLine(const Points& points, std::size_t p, double dx, double dy, double reach,
                          double min_range, double low, double width, const BinSweep& sweep,
-                         double max_slant = 0.0, bool only_empty = false);
+                         double max_slant = 0.0, bool only_empty = false,
+                         double max_range = std::numeric_limits<double>::infinity());
   /// Keeps `range` [m] and `intensity` for `bin` when nearer than what the bin has so far.
   inline void offer(std::size_t bin, double range, float intensity);
 
