@@ -13,6 +13,7 @@
 #include "lidar_deskew/core/deskew.h"
 #include "lidar_deskew/core/rebin.h"
 #include "lidar_deskew/sim/sim.h"
+#include "summary_run.h"
 
 namespace {
 
@@ -132,10 +133,7 @@ class SummaryReporter : public benchmark::ConsoleReporter {
   void ReportRuns(const std::vector<Run>& runs) override {
     ConsoleReporter::ReportRuns(runs);
     for (const Run& run : runs) {
-      // one line per benchmark: the run itself, or the median of its repetitions
-      const bool median = run.run_type == Run::RT_Aggregate && run.aggregate_name == "median";
-      const bool single = run.run_type == Run::RT_Iteration && run.repetitions <= 1;
-      if (run.error_occurred || !(median || single))
+      if (!bench::isSummaryRun(run))  // one line per benchmark
         continue;
       const double points = run.counters.at("points").value;
       const double ns_per_call =

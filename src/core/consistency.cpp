@@ -4,28 +4,14 @@
 #include <cmath>
 #include <limits>
 
+#include "fast_atan2.h"
+
 namespace lidar_deskew::core {
 namespace {
 
 constexpr double kTwoPi = 2.0 * M_PI;
 constexpr int kBinReach = 2;  // bins searched on either side of the query's
-
-/// atan2(y, x) in [-pi, pi] to within 1e-5 rad (a bin is at least 1e-4 rad): a polynomial for atan on
-/// [0, 1] and the octant's symmetries; libm's atan2 took a fifth of the measure's time.
-double fastAtan2(double y, double x) {
-  const double ax = std::abs(x), ay = std::abs(y);
-  const double high = std::max(ax, ay);
-  if (high == 0.0)
-    return 0.0;
-  const double a = std::min(ax, ay) / high;
-  const double s = a * a;
-  double r = a * (0.9998660 + s * (-0.3302995 + s * (0.1801410 + s * (-0.0851330 + s * 0.0208351))));
-  if (ay > ax)
-    r = M_PI_2 - r;
-  if (x < 0.0)
-    r = M_PI - r;
-  return y < 0.0 ? -r : r;
-}
+using detail::fastAtan2;
 
 }  // namespace
 

@@ -4,6 +4,8 @@
 #include <cmath>
 #include <limits>
 
+#include "fast_atan2.h"
+
 namespace lidar_deskew::core {
 namespace {
 
@@ -14,6 +16,42 @@ constexpr double kVertexTolerance = 1e-9;
 inline double cross(double ax, double ay, double bx, double by) {
   return ax * by - ay * bx;
 }
+
+/// [rad] bearings are off by at most this: intervals of bins are widened by it (the crossing test is exact).
+constexpr double kBearingError = 2.0 * detail::kFastAtan2Error;
+using detail::fastAtan2;
+
+/// `delta` [rad], a difference of two bearings in [-pi, pi], moved into [-pi, pi].
+inline double wrapDelta(double delta) {
+  if (delta > M_PI)
+    return delta - kTwoPi;
+  if (delta < -M_PI)
+    return delta + kTwoPi;
+  return delta;
+}
+
+/// [m] the flat-point tolerance never goes below this (float32 ranges, the correction's own error).
+constexpr double kFlatToleranceFloor = 1e-3;
+/// The flat-point tolerance in medians of the distance of a point from its neighbours' line: range noise
+/// sigma gives a median of about 0.8 sigma, so 4 medians keep 99 % of the points of a noisy wall flat.
+constexpr double kFlatToleranceMedians = 4.0;
+/// A step's far contour is continued behind the near one only where it runs at most this far along per
+/// metre sideways (walls seen up to about 72 deg off-normal): beyond, its end is too uncertain.
+constexpr double kMaxStepSlant = 3.0;
+/// [m] a step's far contour is continued (and two flat points farther apart than the gap joined) only where
+/// the error its end segment's noise gives over the continuation (the flat-point tolerance, times one plus
+/// the continuation's length in segment lengths) stays below this; otherwise the step is joined as before (a
+/// chord, or two contour ends).
+constexpr double kStepErrorBudget = 0.005;
+/// Two flat neighbours farther apart than the gap are one surface up to this many gaps apart.
+constexpr double kFlatJoinGaps = 3.0;
+/// A step, or a surface whose points are farther apart than the gap, bridges at most this many bins
+/// (more: the points are not neighbours on the grid, e.g. the first and the last beam of a full circle
+/// while spinning).
+constexpr double kMaxStepBins = 2.0;
+constexpr double kInfinity = std::numeric_limits<double>::infinity();
+/// At most this many points' distances estimate the median (every k-th point).
+constexpr std::size_t kNoiseSampleSize = 128;
 
 /// `angle` [rad] (finite, within a few turns) moved into [0, 2pi) without a library call.
 inline double wrapToTurn(double angle) {
@@ -146,6 +184,8 @@ void ScanRebinner::rebin(const DeskewedScan& corrected, const AngleGrid& grid, f
   computePolarPoints(corrected.points);
   const BinSweep sweep(grid);
   linkContourNeighbours(corrected.points, sweep);
+  findFlatPoints();
+  classifyLinks(sweep);
   traceContours(corrected.points, sweep);
   writeNearestCrossings(corrected.has_intensities, no_return, out);
 }
@@ -157,53 +197,181 @@ void ScanRebinner::clearBins(std::size_t bin_count) {
 
 void ScanRebinner::computePolarPoints(const Points& points) {
   const std::size_t point_count = points.size();
-  point_range_.resize(point_count);
-  point_bearing_.resize(point_count);
+  x_.resize(point_count);
+  y_.resize(point_count);
+  range_.resize(point_count);
+  bearing_.resize(point_count);
   for (std::size_t j = 0; j < point_count; ++j) {
-    const Eigen::Vector3d& p = points[j].position;
-    if (!std::isfinite(p.x()) || !std::isfinite(p.y())) {
+    const double x = points[j].position.x(), y = points[j].position.y();
+    if (!std::isfinite(x) || !std::isfinite(y)) {
       throw InvalidInput("points", "corrected point " + std::to_string(j) + " is not finite");
     }
-    point_range_[j] = std::sqrt(p.x() * p.x() + p.y() * p.y());
-    point_bearing_[j] = std::atan2(p.y(), p.x());
+    x_[j] = x;
+    y_[j] = y;
+    range_[j] = std::sqrt(x * x + y * y);
+    bearing_[j] = fastAtan2(y, x);
   }
 }
 
 void ScanRebinner::linkContourNeighbours(const Points& points, const BinSweep& sweep) {
   const std::size_t point_count = points.size();
-  linked_to_next_.assign(point_count, 0);
+  next_.assign(point_count, kNoPoint);
+  joined_.assign(point_count, 0);
   for (std::size_t j = 0; j + 1 < point_count; ++j) {
-    linked_to_next_[j] = points[j + 1].beam_index == points[j].beam_index + 1 &&
-                         joined(points, j, j + 1, sweep.absIncrement());
+    if (points[j + 1].beam_index == points[j].beam_index + 1)
+      next_[j] = j + 1;
   }
   // For a full-circle grid the last beam also neighbours the first.
   if (sweep.isFullCircle() && point_count > 2 && points.front().beam_index == 0 &&
       points.back().beam_index + 1 == sweep.binCount()) {
-    linked_to_next_[point_count - 1] = joined(points, point_count - 1, 0, sweep.absIncrement());
+    next_[point_count - 1] = 0;
+  }
+  for (std::size_t j = 0; j < point_count; ++j) {
+    const std::size_t k = next_[j];
+    if (k == kNoPoint)
+      continue;
+    const double dx = x_[k] - x_[j], dy = y_[k] - y_[j];
+    const double limit = joinGap(j, k, sweep.absIncrement());
+    joined_[j] = dx * dx + dy * dy <= limit * limit;
+  }
+}
+
+void ScanRebinner::findFlatPoints() {
+  const std::size_t point_count = x_.size();
+  residuals_.assign(point_count, -1.0);
+  std::size_t candidates = 0;
+  for (std::size_t j = 0; j < point_count; ++j) {
+    const std::size_t p = previous(j), q = next_[j];
+    if (p == kNoPoint || q == kNoPoint)
+      continue;
+    const double ex = x_[q] - x_[p], ey = y_[q] - y_[p];
+    const double length = std::sqrt(ex * ex + ey * ey);
+    if (length == 0.0)
+      continue;
+    residuals_[j] = std::abs(cross(ex, ey, x_[j] - x_[p], y_[j] - y_[p])) / length;
+    candidates += joined_[p] && joined_[j];
+  }
+  // The scan's own noise: the median distance of points within one contour, from every stride-th.
+  noise_sample_.clear();
+  const std::size_t stride = std::max<std::size_t>(1, candidates / kNoiseSampleSize);
+  std::size_t seen = 0;
+  for (std::size_t j = 0; j < point_count; ++j) {
+    if (residuals_[j] >= 0.0 && joined_[j] && joined_[previous(j)] && seen++ % stride == 0)
+      noise_sample_.push_back(residuals_[j]);
+  }
+  double median = 0.0;
+  if (!noise_sample_.empty()) {
+    const auto middle = noise_sample_.begin() + static_cast<std::ptrdiff_t>(noise_sample_.size() / 2);
+    std::nth_element(noise_sample_.begin(), middle, noise_sample_.end());
+    median = *middle;
+  }
+  flat_tolerance_ = kFlatToleranceFloor + kFlatToleranceMedians * median;
+  flat_.resize(point_count);
+  for (std::size_t j = 0; j < point_count; ++j)
+    flat_[j] = residuals_[j] >= 0.0 && residuals_[j] <= flat_tolerance_;
+}
+
+void ScanRebinner::classifyLinks(const BinSweep& sweep) {
+  const std::size_t point_count = x_.size();
+  link_.assign(point_count, Link::kNone);
+  corner_x_.resize(point_count);
+  corner_y_.resize(point_count);
+  // First the links one of whose points is flat (surfaces) and the corners; the rest wait (kStep).
+  for (std::size_t j = 0; j < point_count; ++j) {
+    const std::size_t q = next_[j];
+    if (q == kNoPoint)
+      continue;
+    // Joined with one of them flat, or (a wall seen at a grazing angle, its points farther apart than
+    // the gap) both flat.
+    if ((joined_[j] && (flat_[j] || flat_[q])) || (flat_[j] && flat_[q] && nearlyJoined(j, q, sweep))) {
+      link_[j] = Link::kSurface;
+      continue;
+    }
+    const std::size_t p = previous(j), r = next_[q];
+    if (joined_[j] && p != kNoPoint && joined_[p] && r != kNoPoint && joined_[q] &&
+        findCorner(p, j, q, r, corner_x_[j], corner_y_[j])) {
+      link_[j] = Link::kCorner;
+      continue;
+    }
+    link_[j] = Link::kStep;
+  }
+  // A waiting link is a depth step when its farther point continues a surface on its other side.
+  for (std::size_t j = 0; j < point_count; ++j) {
+    if (link_[j] != Link::kStep)
+      continue;
+    const std::size_t q = next_[j];
+    const bool far_is_next = range_[q] > range_[j];
+    const std::size_t far_side = far_is_next ? q : previous(j);
+    const bool far_continues = far_side != kNoPoint && link_[far_side] == Link::kSurface;
+    const bool adjacent =
+        std::abs(wrapDelta(bearing_[q] - bearing_[j])) <= kMaxStepBins * sweep.absIncrement();
+    if (!far_continues || !adjacent || std::abs(range_[q] - range_[j]) <= flat_tolerance_ ||
+        !continuationIsSure(far_is_next ? j : q, far_is_next ? q : j, far_is_next ? next_[q] : previous(j))) {
+      link_[j] = joined_[j] ? Link::kChord : Link::kNone;
+    }
   }
 }
 
 void ScanRebinner::traceContours(const Points& points, const BinSweep& sweep) {
   const std::size_t point_count = points.size();
   const double abs_increment = sweep.absIncrement();
+  const auto intensity = [&](std::size_t j) { return points[j].intensity; };
   for (std::size_t j = 0; j < point_count; ++j) {
-    const std::size_t next = j + 1 < point_count ? j + 1 : 0;
-    const std::size_t previous = j > 0 ? j - 1 : point_count - 1;
-    const bool has_next = linked_to_next_[j];
-    const bool has_previous = point_count > 1 && linked_to_next_[previous] && previous != j;
-    if (has_next)
-      crossSegment(points, j, next, sweep);
-    if (has_next && has_previous)
-      continue;
-    const Eigen::Vector3d& p = points[j].position;
-    if (!has_next && !has_previous) {
-      // Lone return: a facet facing the sensor.
-      extendEnd(points, j, -p.y(), p.x(), joinGap(j, j, abs_increment), sweep);
-    } else {
-      const std::size_t neighbour = has_next ? next : previous;
-      const Eigen::Vector3d& q = points[neighbour].position;
-      extendEnd(points, j, p.x() - q.x(), p.y() - q.y(), joinGap(j, neighbour, abs_increment), sweep);
+    const std::size_t q = next_[j];
+    switch (link_[j]) {
+      case Link::kNone:
+        break;
+      case Link::kSurface:
+      case Link::kChord:
+        crossSegment(x_[j], y_[j], bearing_[j], intensity(j), x_[q], y_[q], bearing_[q], intensity(q), sweep);
+        break;
+      case Link::kCorner: {
+        const double cx = corner_x_[j], cy = corner_y_[j], corner_bearing = fastAtan2(cy, cx);
+        crossSegment(x_[j], y_[j], bearing_[j], intensity(j), cx, cy, corner_bearing, intensity(j), sweep);
+        crossSegment(cx, cy, corner_bearing, intensity(q), x_[q], y_[q], bearing_[q], intensity(q), sweep);
+        break;
+      }
+      case Link::kStep: {
+        // The far contour's end segment continued behind the near point, over the bearings between.
+        const bool far_is_next = range_[q] > range_[j];
+        const std::size_t near = far_is_next ? j : q, far = far_is_next ? q : j;
+        const std::size_t beyond = far_is_next ? next_[q] : previous(j);
+        const double delta = wrapDelta(bearing_[far] - bearing_[near]);
+        extendLine(points, far, x_[far] - x_[beyond], y_[far] - y_[beyond], kInfinity, range_[near],
+                   std::min(bearing_[near], bearing_[near] + delta), std::abs(delta), sweep, kMaxStepSlant,
+                   false, range_[far] + flat_tolerance_);
+        break;
+      }
     }
+  }
+  // Contour ends: where a point continues a contour on one side only, or on neither (a lone point).
+  for (std::size_t j = 0; j < point_count; ++j) {
+    const std::size_t p = previous(j);
+    const Link left = p == kNoPoint ? Link::kNone : link_[p];
+    const Link right = next_[j] == kNoPoint ? Link::kNone : link_[j];
+    const auto continues = [](Link link) { return link != Link::kNone && link != Link::kStep; };
+    const double half_bin = 0.5 * abs_increment;
+    if (continues(left) && continues(right))
+      continue;
+    if (!continues(left) && !continues(right)) {
+      // Lone return: a facet facing the sensor.
+      extendLine(points, j, -y_[j], x_[j], joinGap(j, j, abs_increment), 0.0, bearing_[j] - half_bin,
+                 abs_increment, sweep);
+      continue;
+    }
+    const bool from_left = continues(left);
+    // Follow the end segment (from the neighbour, or the corner, towards j) for up to half a bin; the
+    // near end of a step only into bins the far contour did not reach.
+    const Link end = from_left ? right : left;
+    const bool near_end_of_step = end == Link::kStep && range_[j] < range_[from_left ? next_[j] : p];
+    const std::size_t neighbour = from_left ? p : next_[j];
+    const Link link = from_left ? left : right;
+    const std::size_t corner_of = from_left ? p : j;
+    const double nx = link == Link::kCorner ? corner_x_[corner_of] : x_[neighbour];
+    const double ny = link == Link::kCorner ? corner_y_[corner_of] : y_[neighbour];
+    extendLine(points, j, x_[j] - nx, y_[j] - ny, joinGap(j, neighbour, abs_increment), 0.0,
+               bearing_[j] - half_bin - kBearingError, abs_increment + 2.0 * kBearingError, sweep, 0.0,
+               near_end_of_step);
   }
 }
 
@@ -220,59 +388,105 @@ void ScanRebinner::writeNearestCrossings(bool has_intensities, float no_return, 
   }
 }
 
+bool ScanRebinner::nearlyJoined(std::size_t a, std::size_t b, const BinSweep& sweep) const {
+  const double abs_increment = sweep.absIncrement();
+  const double dx = x_[b] - x_[a], dy = y_[b] - y_[a];
+  const double limit = kFlatJoinGaps * joinGap(a, b, abs_increment);
+  // the flat test is evidence of one surface only when the noise is small against the error budget
+  return flat_tolerance_ <= kStepErrorBudget &&
+         std::abs(wrapDelta(bearing_[b] - bearing_[a])) <= kMaxStepBins * abs_increment &&
+         dx * dx + dy * dy <= limit * limit;
+}
+
 double ScanRebinner::joinGap(std::size_t a, std::size_t b, double abs_increment) const {
-  return config_.min_gap + config_.gap_factor * std::max(point_range_[a], point_range_[b]) * abs_increment;
+  return config_.min_gap + config_.gap_factor * std::max(range_[a], range_[b]) * abs_increment;
 }
 
-bool ScanRebinner::joined(const Points& points, std::size_t a, std::size_t b, double abs_increment) const {
-  const double dx = points[b].position.x() - points[a].position.x();
-  const double dy = points[b].position.y() - points[a].position.y();
-  const double limit = joinGap(a, b, abs_increment);
-  return dx * dx + dy * dy <= limit * limit;
+bool ScanRebinner::continuationIsSure(std::size_t near, std::size_t far, std::size_t beyond) const {
+  if (beyond == kNoPoint)
+    return false;
+  const double segment = std::hypot(x_[far] - x_[beyond], y_[far] - y_[beyond]);
+  // [m] how far the continuation runs along a wall facing the sensor: to the near point's bearing
+  const double run = range_[far] * std::abs(wrapDelta(bearing_[far] - bearing_[near]));
+  return segment > 0.0 && flat_tolerance_ * (1.0 + run / segment) <= kStepErrorBudget;
 }
 
-void ScanRebinner::crossSegment(const Points& points, std::size_t a, std::size_t b, const BinSweep& sweep) {
-  double delta = point_bearing_[b] - point_bearing_[a];  // bearings in [-pi, pi]: wrap once
-  if (delta > M_PI)
-    delta -= kTwoPi;
-  if (delta < -M_PI)
-    delta += kTwoPi;
-  if (std::abs(delta) >= M_PI - 1e-9)
+std::size_t ScanRebinner::previous(std::size_t j) const {
+  const std::size_t candidate = j > 0 ? j - 1 : next_.size() - 1;
+  return next_[candidate] == j ? candidate : kNoPoint;
+}
+
+bool ScanRebinner::findCorner(std::size_t a0, std::size_t a, std::size_t b, std::size_t b1, double& corner_x,
+                              double& corner_y) const {
+  const double ax = x_[a], ay = y_[a], bx = x_[b], by = y_[b];
+  const double dax = ax - x_[a0], day = ay - y_[a0];  // along the wall before a, towards a
+  const double dbx = x_[b1] - bx, dby = y_[b1] - by;  // along the wall after b, away from b
+  const double denominator = cross(dax, day, dbx, dby);
+  if (denominator == 0.0)
+    return false;
+  const double s = cross(bx - ax, by - ay, dbx, dby) / denominator;  // corner = a + s (dax, day)
+  const double t = cross(bx - ax, by - ay, dax, day) / denominator;  // corner = b + t (dbx, dby)
+  if (s < 0.0 || t > 0.0)
+    return false;  // the walls would have to turn back before a or after b
+  corner_x = ax + s * dax;
+  corner_y = ay + s * day;
+  const double side = cross(ax, ay, bx, by);
+  if (cross(ax, ay, corner_x, corner_y) * side <= 0.0 || cross(corner_x, corner_y, bx, by) * side <= 0.0 ||
+      corner_x * (ax + bx) + corner_y * (ay + by) <= 0.0) {
+    return false;  // not between the two points' bearings
+  }
+  const double chord2 = (bx - ax) * (bx - ax) + (by - ay) * (by - ay);
+  const double to_a2 = (corner_x - ax) * (corner_x - ax) + (corner_y - ay) * (corner_y - ay);
+  const double to_b2 = (corner_x - bx) * (corner_x - bx) + (corner_y - by) * (corner_y - by);
+  return to_a2 <= 4.0 * chord2 && to_b2 <= 4.0 * chord2;  // plausibly near both
+}
+
+void ScanRebinner::crossSegment(double ax, double ay, double a_bearing, float a_intensity, double bx,
+                                double by, double b_bearing, float b_intensity, const BinSweep& sweep) {
+  const double delta = wrapDelta(b_bearing - a_bearing);
+  if (std::abs(delta) >= M_PI - 1e-6)
     return;  // passes through the sensor: not a visible surface
-  const double ax = points[a].position.x(), ay = points[a].position.y();
-  const double ex = points[b].position.x() - ax, ey = points[b].position.y() - ay;
-  sweep.forEachBinIn(
-      std::min(point_bearing_[a], point_bearing_[a] + delta), std::abs(delta), [&](std::size_t bin) {
-        const double denominator = cross(ray_cos_[bin], ray_sin_[bin], ex, ey);
-        if (denominator == 0.0)
-          return;
-        const double u = cross(ax, ay, ray_cos_[bin], ray_sin_[bin]) / denominator;
-        if (u < -kVertexTolerance || u > 1.0 + kVertexTolerance)
-          return;
-        const double range = cross(ax, ay, ex, ey) / denominator;
-        if (range <= 0.0)
-          return;
-        offer(bin, range, static_cast<float>((1.0 - u) * points[a].intensity + u * points[b].intensity));
-      });
+  const double ex = bx - ax, ey = by - ay;
+  sweep.forEachBinIn(std::min(a_bearing, a_bearing + delta) - kBearingError,
+                     std::abs(delta) + 2.0 * kBearingError, [&](std::size_t bin) {
+                       const double denominator = cross(ray_cos_[bin], ray_sin_[bin], ex, ey);
+                       if (denominator == 0.0)
+                         return;
+                       const double u = cross(ax, ay, ray_cos_[bin], ray_sin_[bin]) / denominator;
+                       if (u < -kVertexTolerance || u > 1.0 + kVertexTolerance)
+                         return;
+                       const double range = cross(ax, ay, ex, ey) / denominator;
+                       if (range <= 0.0)
+                         return;
+                       offer(bin, range, static_cast<float>((1.0 - u) * a_intensity + u * b_intensity));
+                     });
 }
 
-void ScanRebinner::extendEnd(const Points& points, std::size_t p, double dx, double dy, double reach,
-                             const BinSweep& sweep) {
-  const double px = points[p].position.x(), py = points[p].position.y();
+void ScanRebinner::extendLine(const Points& points, std::size_t p, double dx, double dy, double reach,
+                              double min_range, double low, double width, const BinSweep& sweep,
+                              double max_slant, bool only_empty, double max_range) {
+  const double px = x_[p], py = y_[p];
   const double direction_norm = std::sqrt(dx * dx + dy * dy);
   if (direction_norm == 0.0)
     return;
-  const double abs_increment = sweep.absIncrement();
-  sweep.forEachBinIn(point_bearing_[p] - 0.5 * abs_increment, abs_increment, [&](std::size_t bin) {
-    const double denominator = cross(ray_cos_[bin], ray_sin_[bin], dx, dy);
+  sweep.forEachBinIn(low, width, [&](std::size_t bin) {
+    if (only_empty && best_range_[bin] != kInfinity)
+      return;
+    const double ray_x = ray_cos_[bin], ray_y = ray_sin_[bin];
+    const double denominator = cross(ray_x, ray_y, dx, dy);
     if (denominator == 0.0)
       return;
-    const double u = cross(px, py, ray_cos_[bin], ray_sin_[bin]) / denominator;
-    if (std::abs(u) * direction_norm > reach)
+    const double u = cross(px, py, ray_x, ray_y) / denominator;
+    const double along = std::abs(u) * direction_norm;  // [m] from p
+    if (along > reach)
       return;
     const double range = cross(px, py, dx, dy) / denominator;
-    if (range > 0.0)
-      offer(bin, range, points[p].intensity);
+    if (range <= 0.0 || range < min_range || range > max_range)
+      return;
+    // slant: how far along the line per metre sideways (of the ray's angle from p, at p's range)
+    if (max_slant > 0.0 && along > max_slant * std::abs(cross(px, py, ray_x, ray_y)) * 1.0000001)
+      return;
+    offer(bin, range, points[p].intensity);
   });
 }
 

@@ -153,6 +153,7 @@ Evaluation evaluateBag(const std::string& bag_path, const std::string& truth_pat
       const double angle = scan.angle_min + b * static_cast<double>(scan.angle_increment);
       rebinned_scan.push_back(
           truth.world.distanceTo(laser_at_reference.apply(polarPoint(rebinned.ranges[b], angle))));
+      evaluation.scan_over_1cm += rebinned_scan.back() > 0.01;
     }
     std::vector<Eigen::Vector2d> laser_geometry_world;
     for (sensor_msgs::PointCloud2ConstIterator<float> x(projected, "x"), y(projected, "y"); x != x.end();
@@ -167,6 +168,7 @@ Evaluation evaluateBag(const std::string& bag_path, const std::string& truth_pat
   evaluation.raw = sim::errorStats(raw).scaled(1e3);
   evaluation.cloud = sim::errorStats(cloud).scaled(1e3);
   evaluation.scan = sim::errorStats(rebinned_scan).scaled(1e3);
+  evaluation.scan_filled_bins = rebinned_scan.size();
   evaluation.laser_geometry = sim::errorStats(laser_geometry_errors).scaled(1e3);
   evaluation.cloud_to_hit = sim::errorStats(to_hit).scaled(1e3);
   evaluation.noise_only_rms = noise_count ? 1e3 * std::sqrt(noise_sum_squares / noise_count) : 0.0;

@@ -1,6 +1,7 @@
 #include "lidar_deskew/ros/scan_processor.h"
 
 #include <algorithm>
+#include <utility>
 
 #include <pcl_conversions/pcl_conversions.h>
 
@@ -113,8 +114,9 @@ DeskewedOutputs ScanProcessor::correct(const PreparedScan& prepared, const mrpt:
   scan.scan_time = input.scan_time;
   scan.range_min = input.range_min;
   scan.range_max = input.range_max;
-  scan.ranges = rebinned_.ranges;
-  scan.intensities = rebinned_.intensities;
+  // Moved, not copied: the message keeps the re-binner's vectors (the next scan's are allocated anew).
+  scan.ranges = std::move(rebinned_.ranges);
+  scan.intensities = std::move(rebinned_.intensities);
   outputs.scan = corrected_scan;
   outputs.cloud = toCloud(corrected_, header, core::nsToSeconds(corrected_.reference_time - stamp));
   return outputs;

@@ -166,6 +166,182 @@ struct SyntheticScan {
   static int binOf(int degrees) { return degrees + 180; }
 };
 
+/// Beams at bearings (k + 0.5) deg, k = first_deg .. last_deg, ray-cast from the origin into `world`
+/// (half a bin off the 1 deg grid, so every bin's ray passes between two returns); beam indices from 0.
+/// (`offset_deg` instead of 0.5 moves the beams off the midpoints.)
+DeskewedScan castHalfBinBeams(const sim::World& world, int first_deg, int last_deg, double offset_deg = 0.5) {
+  DeskewedScan scan;
+  for (int k = first_deg; k <= last_deg; ++k) {
+    const double bearing = (k + offset_deg) * M_PI / 180.0;
+    const Eigen::Vector2d direction(std::cos(bearing), std::sin(bearing));
+    const auto range = world.castRay({0.0, 0.0}, direction);
+    if (range) {
+      scan.points.push_back({Eigen::Vector3d(*range * direction.x(), *range * direction.y(), 0.0), 0.0, 0.0f,
+                             static_cast<std::uint32_t>(k - first_deg)});
+    }
+  }
+  return scan;
+}
+
+/// Every bin from first_deg to last_deg holds the range where its ray first meets `world` (within
+/// 0.1 mm), or no return where `may_be_empty` allows; returns how many bins are filled.
+int expectTrueRanges(const sim::World& world, const RebinnedScan& out, int first_deg, int last_deg,
+                     bool may_be_empty) {
+  int filled = 0;
+  for (int degrees = first_deg; degrees <= last_deg; ++degrees) {
+    const double angle = degrees * M_PI / 180.0;
+    const auto truth = world.castRay({0.0, 0.0}, {std::cos(angle), std::sin(angle)});
+    const float range = out.ranges[degrees + 180];
+    if (std::isinf(range) && may_be_empty)
+      continue;
+    ++filled;
+    EXPECT_TRUE(truth) << degrees;
+    EXPECT_NEAR(range, truth.value_or(-1.0), 0.1 * kMm) << degrees << " deg";
+  }
+  return filled;
+}
+
+const core::AngleGrid kDegreeGrid{static_cast<float>(-M_PI), static_cast<float>(M_PI / 180.0), 360};
+
+// A concave and a convex corner between two beams: the rays between meet the walls up to the corner
+// (a chord between the two returns would cut 5-9 mm into the room or the block).
+TEST(Rebin, CornersBetweenTwoBeamsGiveTheCornersRange) {
+  sim::World room;  // the walls x = 4 and y = 1 meet at (4, 1), bearing 14.04 deg, 4.1 m away
+  room.add({4.0, -2.0}, {4.0, 1.0});
+  room.add({4.0, 1.0}, {-2.0, 1.0});
+  sim::World block;  // a block's corner at (3, 0) pointing at the sensor: faces towards -y and +y
+  block.add({3.0, 0.0}, {4.0, -1.5});
+  block.add({3.0, 0.0}, {4.0, 1.5});
+  struct Case {
+    const sim::World& world;
+    int first_deg, last_deg;  // the beams' half-degree bearings; the bins between are checked
+  };
+  for (const Case& c : {Case{room, -15, 40}, Case{block, -20, 19}}) {
+    const DeskewedScan scan = castHalfBinBeams(c.world, c.first_deg, c.last_deg);
+    ScanRebinner rebinner;
+    RebinnedScan out;
+    rebinner.rebin(scan, kDegreeGrid, kInf, out);
+    EXPECT_EQ(expectTrueRanges(c.world, out, c.first_deg + 1, c.last_deg, false), c.last_deg - c.first_deg);
+  }
+  // The room's corner bin in numbers: 4 / cos(14 deg) = 4.1224 m; the chord gives 4.1168 m.
+  const DeskewedScan scan = castHalfBinBeams(room, -15, 40);
+  ScanRebinner rebinner;
+  RebinnedScan out;
+  rebinner.rebin(scan, kDegreeGrid, kInf, out);
+  EXPECT_NEAR(out.ranges[14 + 180], 4.0 / std::cos(14.0 * M_PI / 180.0), 0.1 * kMm);
+}
+
+// A near wall ends and a far one continues behind it, the two joined (15 cm apart) or not (4 m apart):
+// the ray past the near end sees the far wall (or nothing), never a point on the chord between them.
+TEST(Rebin, OcclusionEdgeGivesTheFarWallNeverFreeSpace) {
+  for (const double far_x : {2.15, 6.0}) {
+    sim::World world;
+    world.add({2.0, -2.0}, {2.0, 0.2});      // near wall ends at bearing 5.71 deg
+    world.add({far_x, -5.0}, {far_x, 5.0});  // far wall behind it
+    const DeskewedScan scan = castHalfBinBeams(world, -20, 30);
+    ScanRebinner rebinner;
+    RebinnedScan out;
+    rebinner.rebin(scan, kDegreeGrid, kInf, out);
+    expectTrueRanges(world, out, -19, 30, true);
+    // Bin 6 deg lies between the near wall's last return (5.5 deg) and the far wall's first (6.5 deg).
+    EXPECT_NEAR(out.ranges[6 + 180], far_x / std::cos(6.0 * M_PI / 180.0), 0.1 * kMm) << far_x;
+  }
+}
+
+/// `scan` with every return's range moved by +noise, -noise, +noise, ... [m] (a zig-zag: the worst case
+/// for a line through two neighbouring returns).
+DeskewedScan withZigZagNoise(DeskewedScan scan, double noise) {
+  double sign = 1.0;
+  for (auto& point : scan.points) {
+    const double range = point.position.head<2>().norm();
+    point.position.head<2>() *= (range + sign * noise) / range;
+    sign = -sign;
+  }
+  return scan;
+}
+
+/// Every filled bin from first_deg to last_deg lies within `margin` [m] of the range interval of the two
+/// returns around it (at bearings bin -+ 0.5 deg, cast into `world`): no rule extrapolates past them.
+void expectBetweenNeighbours(const sim::World& world, const RebinnedScan& out, int first_deg, int last_deg,
+                             double margin) {
+  for (int degrees = first_deg; degrees <= last_deg; ++degrees) {
+    const float range = out.ranges[degrees + 180];
+    if (std::isinf(range))
+      continue;
+    double low = kInf, high = 0.0;
+    for (const double bearing_deg : {degrees - 0.5, degrees + 0.5}) {
+      const double bearing = bearing_deg * M_PI / 180.0;
+      const auto hit = world.castRay({0.0, 0.0}, {std::cos(bearing), std::sin(bearing)});
+      ASSERT_TRUE(hit) << bearing_deg;
+      low = std::min(low, *hit);
+      high = std::max(high, *hit);
+    }
+    EXPECT_GE(range, low - margin) << degrees << " deg";
+    EXPECT_LE(range, high + margin) << degrees << " deg";
+  }
+}
+
+// The occlusion edge with +-20 mm of zig-zag range noise: the far wall's end segment is then no evidence
+// for where the wall runs behind the near one (continued, it would go tens of cm astray), so the step is
+// joined as without the continuation; no bin leaves the range interval of its two returns by more than
+// twice the noise (a contour end follows its noisy end segment for half a bin).
+TEST(Rebin, NoisyOcclusionEdgeIsNotContinued) {
+  constexpr double kNoise = 0.02;  // [m]
+  for (const double far_x : {2.15, 6.0}) {
+    sim::World world;
+    world.add({2.0, -2.0}, {2.0, 0.2});
+    world.add({far_x, -5.0}, {far_x, 5.0});
+    const DeskewedScan scan = withZigZagNoise(castHalfBinBeams(world, -20, 30), kNoise);
+    ScanRebinner rebinner;
+    RebinnedScan out;
+    rebinner.rebin(scan, kDegreeGrid, kInf, out);
+    expectBetweenNeighbours(world, out, -19, 30, 2.0 * kNoise + 1.0 * kMm);
+  }
+}
+
+// A 10 cm wide post 2 m away in front of a wall 6 m away, the post's first return 0.05 deg past bin 8
+// (the post starts at 7.97 deg), +-20 mm of zig-zag noise: bin 8 sees the post. Continuing the noisy far
+// wall behind the post's return would give it the wall, 4 m off.
+TEST(Rebin, NoisyStepKeepsTheNearReturnsOwnBin) {
+  constexpr double kNoise = 0.02;  // [m]
+  sim::World world;
+  world.add({2.0, 0.28}, {2.0, 0.38});
+  world.add({6.0, -5.0}, {6.0, 5.0});
+  const DeskewedScan scan = withZigZagNoise(castHalfBinBeams(world, -20, 30, 0.05), kNoise);
+  ScanRebinner rebinner;
+  RebinnedScan out;
+  rebinner.rebin(scan, kDegreeGrid, kInf, out);
+  EXPECT_NEAR(out.ranges[8 + 180], 2.0 / std::cos(8.0 * M_PI / 180.0), 2.0 * kNoise + 1.0 * kMm);
+}
+
+// A wall seen at a grazing angle, its returns farther apart than the gap, with +-20 mm of zig-zag noise:
+// with that much noise two "flat" returns are no evidence of one surface, so they are not joined beyond
+// the gap (as without the grazing join); the bins stay within twice the noise of their returns' ranges.
+TEST(Rebin, NoisyGrazingWallIsNotJoinedBeyondTheGap) {
+  constexpr double kNoise = 0.02;  // [m]
+  sim::World world;
+  world.add({0.3, 0.5}, {12.0, 1.2});  // nearly along the rays: returns ~0.3 .. 0.9 m apart
+  const DeskewedScan scan = withZigZagNoise(castHalfBinBeams(world, 6, 40), kNoise);
+  ScanRebinner rebinner;
+  RebinnedScan out;
+  rebinner.rebin(scan, kDegreeGrid, kInf, out);
+  expectBetweenNeighbours(world, out, 7, 40, 2.0 * kNoise + 1.0 * kMm);
+}
+
+// A 0.4 m square pillar 3 m ahead of a wall 5 m away: its face and the wall on both sides, exact.
+TEST(Rebin, PillarInFrontOfAWall) {
+  sim::World world;
+  world.addPolygon({{3.0, -0.2}, {3.4, -0.2}, {3.4, 0.2}, {3.0, 0.2}});
+  world.add({5.0, -5.0}, {5.0, 5.0});
+  const DeskewedScan scan = castHalfBinBeams(world, -30, 30);
+  ScanRebinner rebinner;
+  RebinnedScan out;
+  rebinner.rebin(scan, kDegreeGrid, kInf, out);
+  EXPECT_EQ(expectTrueRanges(world, out, -29, 29, false), 59);
+  EXPECT_NEAR(out.ranges[3 + 180], 3.0 / std::cos(3.0 * M_PI / 180.0), 0.1 * kMm);  // the pillar
+  EXPECT_NEAR(out.ranges[4 + 180], 5.0 / std::cos(4.0 * M_PI / 180.0), 0.1 * kMm);  // the wall past it
+}
+
 TEST(Rebin, FoldOverTakesTheNearestCrossingAndEmptyBinsStayInfinite) {
   SyntheticScan synthetic;
   synthetic.addLine(5.0, -20, 20, 10, 1.0f);  // early beams: a wall 5 m ahead
