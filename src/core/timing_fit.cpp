@@ -412,6 +412,10 @@ TimingEstimate estimateTiming(const TimingFit& fit, const TimingFitConfig& confi
 TimingCheck::TimingCheck(const TimingConfig& configured, const TimingCheckConfig& config)
     : config_(config), deskewer_([] {
         DeskewConfig deskew;
+        // The alternatives differ by whole stamps and orders: tf's own straight line tells them apart
+        // as well, at a fraction of the twist fit's cost (each alternative's span starts elsewhere, so
+        // the fit's cache of tf answers would start over for each), and the check has a CPU budget.
+        deskew.interpolation = Interpolation::kLinear;
         deskew.reference = Reference::kMiddle;
         deskew.knot_interval = 0.02;  // plus tf's own samples: a few lookups per sweep
         return deskew;
