@@ -325,9 +325,7 @@ const char* interpolationName(Interpolation interpolation) {
 }
 
 void DeskewConfig::validate() const {
-  if (!std::isfinite(smoothing_window) || smoothing_window < 0.0 || smoothing_window > 10.0) {
-    throw InvalidInput("smoothing_window", "must be in [0, 10] s, got " + std::to_string(smoothing_window));
-  }
+  TwistMotion::checkWindow(smoothing_window);
   if (!std::isfinite(knot_interval) || knot_interval < 0.0 ||
       (knot_interval > 0.0 && (knot_interval < kMinKnotInterval || knot_interval > kMaxKnotInterval))) {
     throw InvalidInput("knot_interval", "must be 0 (exact) or in [" + std::to_string(kMinKnotInterval) +

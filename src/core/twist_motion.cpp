@@ -111,10 +111,24 @@ Twist se3Bracket(const Twist& a, const Twist& b) {
   return out;
 }
 
-TwistMotion::TwistMotion(double smoothing_window) : smoothing_window_(smoothing_window) {
+void TwistMotion::checkWindow(double smoothing_window) {
   if (!std::isfinite(smoothing_window) || smoothing_window < 0.0 || smoothing_window > 10.0) {
     throw InvalidInput("smoothing_window", "must be in [0, 10] s, got " + std::to_string(smoothing_window));
   }
+}
+
+TwistMotion::TwistMotion(double smoothing_window) : smoothing_window_(smoothing_window) {
+  checkWindow(smoothing_window);
+}
+
+Twist TwistMotion::Piece::omega(double tau) const {
+  return start_twist * tau + slope * (0.5 * tau * tau) +
+         (tau * tau * tau / 12.0) * se3Bracket(start_twist, slope);
+}
+
+std::deque<TwistMotion::Sample>::iterator TwistMotion::cachedAt(TimeNs time) {
+  return std::lower_bound(cache_.begin(), cache_.end(), time,
+                          [](const Sample& sample, TimeNs t) { return sample.time < t; });
 }
 
 bool TwistMotion::gatherSamples(const MotionSource& raw, TimeNs begin, TimeNs end) {
@@ -143,8 +157,7 @@ bool TwistMotion::gatherSamples(const MotionSource& raw, TimeNs begin, TimeNs en
   cache_source_ = &raw;
   const auto query = [&](std::size_t i, Sample& sample) {
     const TimeNs time = times_[i];
-    const auto cached = std::lower_bound(cache_.begin(), cache_.end(), time,
-                                         [](const Sample& s, TimeNs t) { return s.time < t; });
+    const auto cached = cachedAt(time);
     if (cached != cache_.end() && cached->time == time) {
       sample = *cached;
       return true;
@@ -181,8 +194,7 @@ bool TwistMotion::gatherSamples(const MotionSource& raw, TimeNs begin, TimeNs en
   }
   // Forget what no later sweep's window reaches.
   const TimeNs oldest = samples_.front().time;
-  cache_.erase(cache_.begin(), std::lower_bound(cache_.begin(), cache_.end(), oldest,
-                                                [](const Sample& s, TimeNs t) { return s.time < t; }));
+  cache_.erase(cache_.begin(), cachedAt(oldest));
   return samples_.size() >= 2;
 }
 
@@ -329,8 +341,7 @@ const MotionSource& TwistMotion::prepare(const MotionSource& raw, TimeNs begin, 
       const Eigen::Matrix3d relative_rotation = a.rotation.transpose() * b.rotation;
       const Eigen::Vector3d relative_translation = a.rotation.transpose() * (b.translation - a.translation);
       means_[k] = se3Log(relative_rotation, relative_translation) / durations_[k];
-      const auto cached = std::lower_bound(cache_.begin(), cache_.end(), a.time,
-                                           [](const Sample& s, TimeNs t) { return s.time < t; });
+      const auto cached = cachedAt(a.time);
       if (cached != cache_.end() && cached->time == a.time) {
         cached->mean = means_[k];
         cached->mean_until = b.time;
@@ -386,9 +397,7 @@ const MotionSource& TwistMotion::prepare(const MotionSource& raw, TimeNs begin, 
     // The next piece starts where this one ends.
     Eigen::Matrix3d step_rotation;
     Eigen::Vector3d step_translation;
-    const Twist omega = piece.start_twist * h + piece.slope * (0.5 * h * h) +
-                        (h * h * h / 12.0) * se3Bracket(piece.start_twist, piece.slope);
-    se3Exp(omega, step_rotation, step_translation);
+    se3Exp(piece.omega(h), step_rotation, step_translation);
     translation += rotation * step_translation;
     rotation = rotation * step_rotation;
   }
@@ -408,11 +417,9 @@ mrpt::poses::CPose3D TwistMotion::basePose(TimeNs time) const {
                                       [](TimeNs t, const Piece& piece) { return t < piece.time; });
   const Piece& piece = *(after - 1);
   const double tau = nsToSeconds(time - piece.time);
-  const Twist omega = piece.start_twist * tau + piece.slope * (0.5 * tau * tau) +
-                      (tau * tau * tau / 12.0) * se3Bracket(piece.start_twist, piece.slope);
   Eigen::Matrix3d step_rotation;
   Eigen::Vector3d step_translation;
-  se3Exp(omega, step_rotation, step_translation);
+  se3Exp(piece.omega(tau), step_rotation, step_translation);
   return detail::poseOf(piece.rotation * step_rotation,
                         piece.translation + piece.rotation * step_translation);
 }

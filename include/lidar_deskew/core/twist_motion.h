@@ -48,6 +48,8 @@ class TwistMotion final : public MotionSource {
   /// exact lines and steps, every sample followed). Throws InvalidInput("smoothing_window") when
   /// negative, not finite or above 10 s.
   explicit TwistMotion(double smoothing_window = 0.6);
+  /// Throws InvalidInput("smoothing_window") when `smoothing_window` [s] is negative, not finite or above 10.
+  static void checkWindow(double smoothing_window);
 
   /// Fits the motion of `raw` over [begin, end] from its samples (MotionSource::appendSampleTimes and
   /// basePose at those times). Returns *this, or `raw` itself when raw reports no samples at or before
@@ -90,8 +92,12 @@ class TwistMotion final : public MotionSource {
     Twist slope;
     Eigen::Matrix3d rotation;  // fitted pose at the piece's start
     Eigen::Vector3d translation;
+    /// Omega(t') = start t' + slope t'^2 / 2 + t'^3 / 12 [start, slope]: the motion t' [s] into the piece.
+    Twist omega(double tau) const;
   };
 
+  /// The first cached sample at or after `time`.
+  std::deque<Sample>::iterator cachedAt(TimeNs time);
   bool gatherSamples(const MotionSource& raw, TimeNs begin, TimeNs end);
   void estimateNoise();
   /// Fitted (mean twist, slope) of interval j, component c.
