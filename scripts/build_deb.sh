@@ -7,7 +7,7 @@
 # Depends: dpkg-shlibdeps of the libraries and executables, plus the ROS tools that rosrun, roslaunch
 # and the nodelet need. Recommends: the -dev packages that find_package(lidar_deskew) needs, found
 # with dpkg -S from the CMake configs of the installed config's dependencies.
-# The build folder .build/deb/build is kept: later runs rebuild only what changed, and repackage
+# The build folder .build/deb/build/lidar_deskew is kept: later runs rebuild only what changed, and repackage
 # only when the installed files, this script or package.xml changed.
 # Usage: scripts/build_deb.sh    (prints the path of the .deb)
 set -euo pipefail
@@ -21,14 +21,20 @@ version=$(sed -n 's:.*<version>\(.*\)</version>.*:\1:p' "$repo/package.xml" | he
 arch=$(dpkg --print-architecture)
 multiarch=$(dpkg-architecture -qDEB_HOST_MULTIARCH)
 work="$repo/.build/deb"
-build="$work/build"
+# Laid out like the catkin workspace (.build/ws: src/lidar_deskew, build/lidar_deskew, devel) so that the
+# compiler cache serves this build the workspace's objects (scripts/compiler_cache.sh).
+build="$work/build/lidar_deskew"
 # dpkg-shlibdeps recognises the package's own libraries when the files lie in debian/<package>/
 stage="$work/pkg/debian/$package"
 deb="$repo/.build/${package}_${version}_${arch}.deb"
 
-mkdir -p "$work"
-if [ ! -f "$build/CMakeCache.txt" ] || [ "$script" -nt "$build/CMakeCache.txt" ]; then
-  cmake -S "$repo" -B "$build" -DCMAKE_BUILD_TYPE=Release -DCMAKE_INSTALL_PREFIX=/usr \
+mkdir -p "$work/src"
+ln -sfn "$repo" "$work/src/lidar_deskew"
+source "$repo/scripts/compiler_cache.sh"
+if [ ! -f "$build/CMakeCache.txt" ] || [ "$script" -nt "$build/CMakeCache.txt" ] ||
+  [ "$repo/scripts/compiler_cache.sh" -nt "$build/CMakeCache.txt" ]; then
+  cmake -S "$work/src/lidar_deskew" -B "$build" -DCMAKE_BUILD_TYPE=Release -DCMAKE_INSTALL_PREFIX=/usr \
+    -DCATKIN_DEVEL_PREFIX="$work/devel" "${compiler_cache_args[@]}" \
     -DCATKIN_BUILD_BINARY_PACKAGE=ON -DCATKIN_ENABLE_TESTING=OFF -DCMAKE_DISABLE_FIND_PACKAGE_benchmark=ON \
     >"$work/configure.log" || { cat "$work/configure.log" >&2; exit 1; }
 fi

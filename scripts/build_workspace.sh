@@ -5,11 +5,12 @@
 set -euo pipefail
 export PATH=/usr/bin:/bin:$PATH
 export PYTHONNOUSERSITE=1
-repo=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
+repo=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd -P)
 ws="$repo/.build/ws"
 mkdir -p "$ws/src"
 ln -sfn "$repo" "$ws/src/lidar_deskew"
 cd "$ws"
 jobs=${LIDAR_DESKEW_JOBS:-2}
-catkin_make -j"$jobs" -DCMAKE_BUILD_TYPE=Release "$@"
+source "$repo/scripts/compiler_cache.sh"
+catkin_make -j"$jobs" -DCMAKE_BUILD_TYPE=Release "${compiler_cache_args[@]}" "$@"
 catkin_make -j"$jobs" install "$@" >/dev/null

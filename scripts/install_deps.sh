@@ -7,6 +7,7 @@ export PATH=/usr/bin:/bin:/usr/sbin:/sbin:$PATH
 PACKAGES=(
   # toolchain and test tools
   cmake g++ make git libgtest-dev libbenchmark-dev bc
+  ccache  # shared by the workspace's and the Debian package's builds (scripts/compiler_cache.sh)
   # the Debian package: dpkg-shlibdeps, dpkg-architecture
   dpkg-dev
   # fuzzing: clang with libFuzzer, ASan and UBSan

@@ -1,0 +1,19 @@
+# Sourced by the build scripts: compiles through ccache, with one cache in .build/ccache shared by the
+# catkin workspace (scripts/build_workspace.sh) and the Debian package (scripts/build_deb.sh). Both are
+# Release builds of the same sources with the same flags, laid out alike under .build/ (source through
+# <dir>/src/lidar_deskew, objects in <dir>/build/lidar_deskew, devel space <dir>/devel); with paths made
+# relative to the repo, the package's build finds the workspace's objects (ccache checks the source, every
+# header and the flags; a hit is the object the compiler made for the same input).
+# Needs $repo (the repo's physical path). Sets compiler_cache_args (CMake arguments; without ccache they
+# clear the launcher).
+# LIDAR_DESKEW_CCACHE=0 turns it off.
+compiler_cache_args=()
+if [ "${LIDAR_DESKEW_CCACHE:-1}" != 0 ] && command -v ccache >/dev/null; then
+  export CCACHE_DIR=${CCACHE_DIR:-$repo/.build/ccache}
+  export CCACHE_BASEDIR=$repo
+  export CCACHE_NOHASHDIR=1
+  export CCACHE_MAXSIZE=${CCACHE_MAXSIZE:-2G}
+  compiler_cache_args=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache -DCMAKE_C_COMPILER_LAUNCHER=ccache)
+else
+  compiler_cache_args=(-DCMAKE_CXX_COMPILER_LAUNCHER= -DCMAKE_C_COMPILER_LAUNCHER=)  # clears a cached one
+fi
