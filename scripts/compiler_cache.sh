@@ -1,9 +1,10 @@
 # Sourced by the build scripts: compiles through ccache, with one cache in .build/ccache shared by the
-# catkin workspace (scripts/build_workspace.sh) and the Debian package (scripts/build_deb.sh). Both are
-# Release builds of the same sources with the same flags, laid out alike under .build/ (source through
-# <dir>/src/lidar_deskew, objects in <dir>/build/lidar_deskew, devel space <dir>/devel); with paths made
-# relative to the repo, the package's build finds the workspace's objects (ccache checks the source, every
-# header and the flags; a hit is the object the compiler made for the same input).
+# catkin workspace (scripts/build_workspace.sh), the Debian package (scripts/build_deb.sh) and the plain
+# CMake check (test/check_plain_cmake.sh). All are Release builds of the same sources with the same flags,
+# laid out alike under .build/ (source through <dir>/src/lidar_deskew, objects in <dir>/build/lidar_deskew,
+# devel space <dir>/devel): ccache makes paths relative to the repo (after resolving links), so the later
+# builds find the workspace's objects (it checks the source, every header and the flags; a hit is the
+# object the compiler made for the same input).
 # Needs $repo (the repo's physical path). Sets compiler_cache_args (CMake arguments; without ccache they
 # clear the launcher).
 # LIDAR_DESKEW_CCACHE=0 turns it off.
