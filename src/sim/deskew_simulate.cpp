@@ -131,10 +131,20 @@ int main(int argc, char** argv) {
   const bool cloud = !cloud_scenario_name.empty();
   if (scenario_name.empty() == !cloud || bag_path.empty() || truth_path.empty())
     return usage(argv[0]);
-  if (cloud && (convention_name.empty() || clockwise || tf_margin_given || odom_noise_given))
-    return usage(argv[0]);
-  if (!cloud && !convention_name.empty())
-    return usage(argv[0]);
+  if (cloud && convention_name.empty()) {
+    std::fprintf(stderr, "deskew_simulate: --cloud-scenario needs --convention (--list-conventions)\n");
+    return 2;
+  }
+  if (cloud && (clockwise || tf_margin_given || odom_noise_given)) {
+    std::fprintf(stderr,
+                 "deskew_simulate: --clockwise, --tf-margin and --odom-noise are for planar scenarios "
+                 "(--scenario), not --cloud-scenario\n");
+    return 2;
+  }
+  if (!cloud && !convention_name.empty()) {
+    std::fprintf(stderr, "deskew_simulate: --convention is for --cloud-scenario, not --scenario\n");
+    return 2;
+  }
   if (!(options.tf_rate > 0.0)) {
     std::fprintf(stderr, "--tf-rate must be > 0 Hz\n");
     return 2;
