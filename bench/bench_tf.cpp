@@ -72,7 +72,8 @@ struct Recording {
       buffer.setTransform(transform, "bench", false);
       motion.addSampleTime(ros_adapter::toNs(transform.header.stamp));
     }
-    for (double start = 0.0; start + 1.0 / model.rate <= kRecordingSeconds + 1e-9; start += 1.0 / model.rate) {
+    for (double start = 0.0; start + 1.0 / model.rate <= kRecordingSeconds + 1e-9;
+         start += 1.0 / model.rate) {
       simulated.push_back(sim::simulateScan(world, trajectory, mount, model, kEpoch, start));
       sensor_msgs::LaserScan message;
       const core::PlanarScan& scan = simulated.back().scan;
