@@ -59,7 +59,7 @@ $(cat "$work/table.md")
 A real recording: 60 scans at 5 Hz, 361 beams, odometry at 5-7 Hz.
 
 \`\`\`
-$(cat "$work/neato.txt")
+$(sed "s|$repo/||g" "$work/neato.txt")
 \`\`\`
 DOC
 if [ -s "$work/missed.txt" ]; then cat "$work/missed.txt" >&2; fi
