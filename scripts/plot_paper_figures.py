@@ -13,9 +13,9 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
-SENSORS = ["UTM-30LX", "ILD26TRI", "UTM-30LX-270"]
+# sensor -> half-width [m] of its panels (the LDS-01 sees 3.5 m, in the small room)
+SENSORS = {"UTM-30LX": 9.0, "ILD26TRI": 9.0, "UTM-30LX-270": 9.0, "LDS-01": 3.0}
 MOTIONS = ["translation", "rotation", "arc"]
-VIEW = 9.0  # [m] half-width of each panel
 
 
 def read(path):
@@ -30,7 +30,7 @@ def read(path):
     return data
 
 
-def panel(axes, data, title):
+def panel(axes, data, title, view=9.0):
     for x1, y1, x2, y2 in data["wall"]:
         axes.plot([x1, x2], [y1, y2], color="black", linewidth=0.8)
     for kind, colour in (("raw", "red"), ("corrected", "green")):
@@ -39,8 +39,8 @@ def panel(axes, data, title):
                      linewidths=0, rasterized=True)
     path = data["path"]
     axes.plot([p[0] for p in path], [p[1] for p in path], color="black", linewidth=1.5)
-    axes.set_xlim(-VIEW, VIEW)
-    axes.set_ylim(-VIEW, VIEW)
+    axes.set_xlim(-view, view)
+    axes.set_ylim(-view, view)
     axes.set_aspect("equal")
     axes.set_title(title, fontsize=8)
     axes.tick_params(labelsize=6)
@@ -52,11 +52,14 @@ def main():
     work, out = sys.argv[1], sys.argv[2]
     os.makedirs(out, exist_ok=True)
     for speed in ("normal", "high"):
-        figure, axes = plt.subplots(3, 3, figsize=(10, 10))
-        for row, sensor in enumerate(SENSORS):
+        figure, axes = plt.subplots(len(SENSORS), 3, figsize=(10, 10 * len(SENSORS) / 3))
+        for row, (sensor, view) in enumerate(SENSORS.items()):
             for column, motion in enumerate(MOTIONS):
-                data = read(os.path.join(work, f"{sensor}_{speed}_{motion}-on.csv"))
-                panel(axes[row][column], data, f"{sensor}, {speed} speed, {motion}")
+                path = os.path.join(work, f"{sensor}_{speed}_{motion}-on.csv")
+                if not os.path.exists(path):  # not a suite case (LDS-01 at high speed in a line)
+                    axes[row][column].axis("off")
+                    continue
+                panel(axes[row][column], read(path), f"{sensor}, {speed} speed, {motion}", view)
         axes[0][0].legend(loc="lower left", fontsize=7, markerscale=6)
         figure.tight_layout()
         figure.savefig(os.path.join(out, f"paper_{speed}.png"), dpi=90)
