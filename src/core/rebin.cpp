@@ -287,8 +287,14 @@ void ScanRebinner::classifyLinks(const BinSweep& sweep) {
       link_[j] = Link::kSurface;
       continue;
     }
+    // A corner: its three links joined; or, in a scan with little noise, a wall at a grazing angle (its
+    // points farther apart than the gap): nearly joined, and a wall's line nearly joined only where a
+    // third point confirms it (`confirm` flat: on the line through its neighbours).
+    const auto close = [&](std::size_t a, std::size_t b, std::size_t confirm) {
+      return joined_[a] || (nearlyJoined(a, b, sweep) && (confirm == kNoPoint || flat_[confirm]));
+    };
     const std::size_t p = previous(j), r = next_[q];
-    if (joined_[j] && p != kNoPoint && joined_[p] && r != kNoPoint && joined_[q] &&
+    if (p != kNoPoint && r != kNoPoint && close(j, q, kNoPoint) && close(p, j, p) && close(q, r, r) &&
         findCorner(p, j, q, r, corner_x_[j], corner_y_[j])) {
       link_[j] = Link::kCorner;
       continue;

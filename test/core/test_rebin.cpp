@@ -231,6 +231,27 @@ TEST(Rebin, CornersBetweenTwoBeamsGiveTheCornersRange) {
   EXPECT_NEAR(out.ranges[14 + 180], 4.0 / std::cos(14.0 * M_PI / 180.0), 0.1 * kMm);
 }
 
+// A corner far away (20 m) between a wall facing the sensor and one leaving it at a grazing angle (80 deg
+// off-normal: its returns 2-4 m apart, farther than the gap, so not joined): the rays between meet the
+// facing wall up to the corner and the grazing one beyond, not the grazing wall's line continued in
+// front of the facing one (0.5 m off at bin 6 deg).
+TEST(Rebin, CornerOfAFarGrazingWall) {
+  const double corner_deg = 6.3;
+  const Eigen::Vector2d corner(20.0, 20.0 * std::tan(corner_deg * M_PI / 180.0));
+  const double wall_deg = corner_deg + 10.0;  // the grazing wall's direction: 10 deg off the corner's ray
+  sim::World world;
+  world.add({20.0, -8.0}, corner);
+  world.add(corner, corner + 60.0 * Eigen::Vector2d(std::cos(wall_deg * M_PI / 180.0),
+                                                    std::sin(wall_deg * M_PI / 180.0)));
+  const DeskewedScan scan = castHalfBinBeams(world, -20, 12);
+  ScanRebinner rebinner;
+  RebinnedScan out;
+  rebinner.rebin(scan, kDegreeGrid, kInf, out);
+  // (bin 12, beside the last return, lies 3.6 m along the grazing wall from it: past what an end reaches)
+  EXPECT_EQ(expectTrueRanges(world, out, -19, 11, false), 31);
+  EXPECT_NEAR(out.ranges[6 + 180], 20.0 / std::cos(6.0 * M_PI / 180.0), 0.1 * kMm);  // the facing wall
+}
+
 // A near wall ends and a far one continues behind it, the two joined (15 cm apart) or not (4 m apart):
 // the ray past the near end sees the far wall (or nothing), never a point on the chord between them.
 TEST(Rebin, OcclusionEdgeGivesTheFarWallNeverFreeSpace) {

@@ -53,7 +53,9 @@ class ScanRebinner {
   ///   where its ray meets it, intensity interpolated) when one of its points lies on the line through
   ///   its other neighbours (within a tolerance that follows the scan's own noise);
   /// - a corner: where the lines of the two neighbouring segments meet between the points' bearings
-  ///   (and within two segment lengths of both), the rays between meet the two walls up to that corner;
+  ///   (and within two segment lengths of both), the rays between meet the two walls up to that corner
+  ///   (a wall at a grazing angle, its returns farther apart than the gap, counts when the scan's noise
+  ///   is within kStepErrorBudget and a third return lies on its line);
   /// - a depth step (a near contour ends, a far one continues behind it; joined or not): the rays
   ///   between see the far contour's line continued behind the near one's end (no farther than the far
   ///   point), never a chord through free space; the near contour is not extended towards it. Only where
