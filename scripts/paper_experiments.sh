@@ -117,10 +117,11 @@ arc itself; what its high-speed arc rows show is the chord between its 5 ms knot
 varying rows the same (the changes fall on samples; tables at 10, 20 and 50 Hz below). laser_geometry is exact
 for a pure translation and for a spin about the laser (the chord is the path), and off on arcs and
 varying motion. The re-binned scan is exact where a ray falls between two returns on one wall; at a
-corner it follows both walls' lines to where they meet (a grazing wall's too, where a third return
-confirms its line), behind a depth step the far wall's line (where the scan's noise keeps that within
-5 mm). What is left (its max; 0.4-1.1 % of bins > 1 cm on the 1° ILD26TRI, ≤ 0.2 % on the others) is
-mostly lone far returns at grazing angles and depth steps to a single return, where no line is known. With noise on,
+corner it follows both walls' lines to where they meet, along a wall at a grazing angle (returns
+farther apart than the gap) where a third return confirms its line, and behind a depth step the far
+wall's line (each only where the scan's noise keeps it within 5 mm). What is left (its max; 0.35-0.93 %
+of bins > 1 cm on the 1° ILD26TRI, ≤ 0.17 % on the others) is mostly depth steps to a single return and
+near contours' ends, where no line is known. With noise on,
 range noise σ moves points along their beams, which is σ·rms(cos incidence) from the walls: about
 0.8 σ here.
 

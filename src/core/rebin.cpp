@@ -43,7 +43,7 @@ constexpr double kMaxStepSlant = 3.0;
 /// the continuation's length in segment lengths) stays below this; otherwise the step is joined as before (a
 /// chord, or two contour ends).
 constexpr double kStepErrorBudget = 0.005;
-/// Two flat neighbours farther apart than the gap are one surface up to this many gaps apart.
+/// Neighbours farther apart than the gap (one of them flat) are one surface up to this many gaps apart.
 constexpr double kFlatJoinGaps = 3.0;
 /// A step, or a surface whose points are farther apart than the gap, bridges at most this many bins
 /// (more: the points are not neighbours on the grid, e.g. the first and the last beam of a full circle
@@ -281,9 +281,9 @@ void ScanRebinner::classifyLinks(const BinSweep& sweep) {
     const std::size_t q = next_[j];
     if (q == kNoPoint)
       continue;
-    // Joined with one of them flat, or (a wall seen at a grazing angle, its points farther apart than
-    // the gap) both flat.
-    if ((joined_[j] && (flat_[j] || flat_[q])) || (flat_[j] && flat_[q] && nearlyJoined(j, q, sweep))) {
+    // One of them flat (the line through its neighbours holds the other), and joined or (a wall seen at
+    // a grazing angle, its points farther apart than the gap) nearly joined.
+    if ((flat_[j] || flat_[q]) && (joined_[j] || nearlyJoined(j, q, sweep))) {
       link_[j] = Link::kSurface;
       continue;
     }

@@ -247,9 +247,26 @@ TEST(Rebin, CornerOfAFarGrazingWall) {
   ScanRebinner rebinner;
   RebinnedScan out;
   rebinner.rebin(scan, kDegreeGrid, kInf, out);
-  // (bin 12, beside the last return, lies 3.6 m along the grazing wall from it: past what an end reaches)
-  EXPECT_EQ(expectTrueRanges(world, out, -19, 11, false), 31);
+  EXPECT_EQ(expectTrueRanges(world, out, -19, 12, false), 32);
   EXPECT_NEAR(out.ranges[6 + 180], 20.0 / std::cos(6.0 * M_PI / 180.0), 0.1 * kMm);  // the facing wall
+}
+
+// A far wall at a grazing angle whose first return has no return before it: that return is not flat (one
+// neighbour), the next one is (the three on one line), so the two are one surface although farther apart
+// than the gap, and the ray before the first return meets the wall's line, not a facet facing the sensor
+// (0.5 m off).
+TEST(Rebin, FarGrazingWallFromItsFirstReturn) {
+  const Eigen::Vector2d start(20.0, 20.0 * std::tan(5.8 * M_PI / 180.0));  // bearing 5.8 deg
+  const double wall_deg = 15.8;                                            // 10 deg off that ray
+  sim::World world;
+  world.add(start, start + 60.0 * Eigen::Vector2d(std::cos(wall_deg * M_PI / 180.0),
+                                                  std::sin(wall_deg * M_PI / 180.0)));
+  const DeskewedScan scan = castHalfBinBeams(world, 0, 12);  // returns from 6.5 deg on
+  ScanRebinner rebinner;
+  RebinnedScan out;
+  rebinner.rebin(scan, kDegreeGrid, kInf, out);
+  EXPECT_EQ(expectTrueRanges(world, out, 6, 12, false), 7);
+  EXPECT_TRUE(std::isinf(out.ranges[5 + 180]));  // before the wall: nothing
 }
 
 // A near wall ends and a far one continues behind it, the two joined (15 cm apart) or not (4 m apart):

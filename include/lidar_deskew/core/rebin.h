@@ -51,7 +51,9 @@ class ScanRebinner {
   /// - consecutive points (beam indices i, i+1; for a full-circle grid also n-1, 0) closer than the
   ///   RebinConfig gap are candidates for one contour segment. A segment is a surface (a bin's range is
   ///   where its ray meets it, intensity interpolated) when one of its points lies on the line through
-  ///   its other neighbours (within a tolerance that follows the scan's own noise);
+  ///   its other neighbours (within a tolerance that follows the scan's own noise); a wall at a grazing
+  ///   angle, its points farther apart than the gap, too, up to kFlatJoinGaps gaps, when that tolerance
+  ///   is within kStepErrorBudget;
   /// - a corner: where the lines of the two neighbouring segments meet between the points' bearings
   ///   (and within two segment lengths of both), the rays between meet the two walls up to that corner
   ///   (a wall at a grazing angle, its returns farther apart than the gap, counts when the scan's noise
@@ -104,9 +106,10 @@ class ScanRebinner {
   // Used by the steps; inline (defined and used only in rebin.cpp) to keep the per-bin loops in one piece.
   /// [m] the RebinConfig gap for points a and b (at the larger of their ranges; a == b for a lone point).
   inline double joinGap(std::size_t a, std::size_t b, double abs_increment) const;
-  /// Whether two flat neighbours a and b, farther apart than the gap, still make one surface: at most
-  /// kMaxStepBins apart in bearing and a few gaps apart in distance (a wall at a grazing angle), and the
-  /// scan's flat tolerance within kStepErrorBudget (with more noise, "flat" is no evidence).
+  /// Whether neighbours a and b, farther apart than the gap, can still make one surface (when one of them
+  /// is flat) or a corner's wall: at most kMaxStepBins apart in bearing and a few gaps apart in distance
+  /// (a wall at a grazing angle), and the scan's flat tolerance within kStepErrorBudget (with more noise,
+  /// "flat" is no evidence).
   inline bool nearlyJoined(std::size_t a, std::size_t b, const BinSweep& sweep) const;
   /// Whether a step's far contour (its end point `far`, the point `beyond` before it on that contour) can
   /// be continued behind `near` within kStepErrorBudget given the scan's noise (flat_tolerance_).
