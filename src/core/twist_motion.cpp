@@ -137,7 +137,9 @@ bool TwistMotion::gatherSamples(const MotionSource& raw, TimeNs begin, TimeNs en
   // appendSampleTimes gives times strictly inside; the margins include the samples bracketing the sweep.
   const TimeNs horizon = secondsToNs(std::max(kNoiseHorizon, half));
   raw.appendSampleTimes(begin - horizon - 1, end + horizon + 1, times_);
-  std::sort(times_.begin(), times_.end());
+  // Sources report their times in order (tf, PoseSamples): sorting is then a check.
+  if (!std::is_sorted(times_.begin(), times_.end()))
+    std::sort(times_.begin(), times_.end());
   times_.erase(std::unique(times_.begin(), times_.end()), times_.end());
   const auto after_begin = std::upper_bound(times_.begin(), times_.end(), begin);
   const auto at_end = std::lower_bound(times_.begin(), times_.end(), end);
@@ -155,46 +157,60 @@ bool TwistMotion::gatherSamples(const MotionSource& raw, TimeNs begin, TimeNs en
     cache_.clear();
   cache_begin_ = begin;
   cache_source_ = &raw;
-  const auto query = [&](std::size_t i, Sample& sample) {
+  // samples_[i] is the answer at times_[i]. The queries walk outwards from the sweep's first sample, so
+  // one iterator walks the cache along (`at`: the first cached sample at or after the time asked) rather
+  // than a search per sample.
+  samples_.resize(times_.size());
+  auto at = cachedAt(times_[first]);
+  const auto seek = [&](TimeNs time) {
+    while (at != cache_.begin() && std::prev(at)->time >= time)
+      --at;
+    while (at != cache_.end() && at->time < time)
+      ++at;
+  };
+  const auto query = [&](std::size_t i) {
     const TimeNs time = times_[i];
-    const auto cached = cachedAt(time);
-    if (cached != cache_.end() && cached->time == time) {
-      sample = *cached;
-      return true;
+    seek(time);
+    if (at == cache_.end() || at->time != time) {
+      mrpt::poses::CPose3D pose;
+      try {
+        pose = raw.basePose(time);
+      } catch (const MotionUnavailable&) {
+        return false;
+      }
+      at =
+          cache_.insert(at, {time, detail::rotationOf(pose), detail::translationOf(pose), Twist::Zero(), -1});
     }
-    try {
-      const mrpt::poses::CPose3D pose = raw.basePose(time);
-      sample = {time, detail::rotationOf(pose), detail::translationOf(pose), Twist::Zero(), -1};
-    } catch (const MotionUnavailable&) {
-      return false;
-    }
-    cache_.insert(cached, sample);
+    samples_[i] = *at;
     return true;
   };
   // From the sweep's first sample outwards, stopping where the source no longer answers (a chain's
-  // links end at different times).
-  std::vector<Sample> before;
-  Sample sample;
-  for (std::size_t i = first + 1; i-- > 0;) {
-    if (!query(i, sample)) {
-      if (i == first)
+  // links end at different times): samples_[low, high) are answered.
+  std::size_t low = first + 1;
+  while (low > 0) {
+    if (!query(low - 1)) {
+      if (low - 1 == first)
         return false;
       break;
     }
-    before.push_back(sample);
+    --low;
   }
-  samples_.assign(before.rbegin(), before.rend());
-  for (std::size_t i = first + 1; i < times_.size(); ++i) {
-    if (!query(i, sample)) {
-      if (i <= last)
+  // Where the oldest sample is kept; the forward walk inserts after it only.
+  seek(times_[low]);
+  const auto oldest = at - cache_.begin();
+  std::size_t high = first + 1;
+  while (high < times_.size()) {
+    if (!query(high)) {
+      if (high <= last)
         return false;
       break;
     }
-    samples_.push_back(sample);
+    ++high;
   }
+  samples_.erase(samples_.begin() + static_cast<std::ptrdiff_t>(high), samples_.end());
+  samples_.erase(samples_.begin(), samples_.begin() + static_cast<std::ptrdiff_t>(low));
   // Forget what no later sweep's window reaches.
-  const TimeNs oldest = samples_.front().time;
-  cache_.erase(cache_.begin(), cachedAt(oldest));
+  cache_.erase(cache_.begin(), cache_.begin() + oldest);
   return samples_.size() >= 2;
 }
 
@@ -332,6 +348,8 @@ const MotionSource& TwistMotion::prepare(const MotionSource& raw, TimeNs begin, 
   means_.resize(intervals);
   durations_.resize(intervals);
   centres_.resize(intervals);
+  // The cache starts at samples_.front() and holds the others in order: one iterator walks it along.
+  auto cached = cache_.begin();
   for (std::size_t k = 0; k < intervals; ++k) {
     const Sample& a = samples_[k];
     const Sample& b = samples_[k + 1];
@@ -341,7 +359,8 @@ const MotionSource& TwistMotion::prepare(const MotionSource& raw, TimeNs begin, 
       const Eigen::Matrix3d relative_rotation = a.rotation.transpose() * b.rotation;
       const Eigen::Vector3d relative_translation = a.rotation.transpose() * (b.translation - a.translation);
       means_[k] = se3Log(relative_rotation, relative_translation) / durations_[k];
-      const auto cached = cachedAt(a.time);
+      while (cached != cache_.end() && cached->time < a.time)
+        ++cached;
       if (cached != cache_.end() && cached->time == a.time) {
         cached->mean = means_[k];
         cached->mean_until = b.time;
