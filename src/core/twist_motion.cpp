@@ -45,6 +45,9 @@ void expCoefficients(double angle, double& a, double& b, double& c) {
   }
 }
 
+/// The quartic stencil's points b != a, for a = 0 to 4 (four each, increasing): its quotients' order.
+constexpr int kQuarticOther[20] = {1, 2, 3, 4, 0, 2, 3, 4, 0, 1, 3, 4, 0, 1, 2, 4, 0, 1, 2, 3};
+
 /// Chi-square quantile for `dof` degrees of freedom at kTestQuantile (Wilson-Hilferty).
 double lineTestLimit(double dof) {
   const double k = 2.0 / (9.0 * dof);
@@ -234,43 +237,57 @@ void TwistMotion::estimateNoise() {
   // step_[k]: |m_k+1 - m_k| / sqrt(2); chord_[k]: m_k from the line through k-1 and k+1; curve_[i]: m_i+5
   // from the quartic through i..i+4 (Lagrange extrapolation: a smooth curve's twist, rough ground at
   // 2-3 Hz, is explained by it to 0.2 % of its amplitude at 50 Hz).
+  // Only the stencils around the intervals j in [5, count - 6] scored below are computed.
   step_.resize(count);
   chord_.resize(count);
   curve_.resize(count);
-  for (std::size_t k = 0; k + 1 < count; ++k)
+  for (std::size_t k = 4; k + 6 <= count; ++k)
     step_[k] = (means_[k + 1] - means_[k]).cwiseAbs() / std::sqrt(2.0);
-  for (std::size_t k = 1; k + 1 < count; ++k) {
+  for (std::size_t k = 4; k + 5 <= count; ++k) {
     const double w_before = (centres_[k + 1] - centres_[k]) / (centres_[k + 1] - centres_[k - 1]);
     const double w_after = 1.0 - w_before;
     chord_[k] = (means_[k] - w_before * means_[k - 1] - w_after * means_[k + 1]).cwiseAbs() /
                 std::sqrt(1.0 + w_before * w_before + w_after * w_after);
   }
   for (std::size_t i = 0; i + 5 < count; ++i) {
+    // Point a's weight is the product over b != a of (centre_5 - centre_b) / (centre_a - centre_b), in
+    // increasing b (the order fixes its rounding). The twenty quotients do not depend on each other:
+    // divided as one array, two at a time.
+    const double* centre = &centres_[i];
+    Eigen::Array<double, 20, 1> numerators, denominators;
+    for (int n = 0; n < 20; ++n) {
+      numerators[n] = centre[5] - centre[kQuarticOther[n]];
+      denominators[n] = centre[n / 4] - centre[kQuarticOther[n]];
+    }
+    const Eigen::Array<double, 20, 1> quotients = numerators / denominators;
     Twist prediction = Twist::Zero();
     double variance = 1.0;
-    for (std::size_t a = i; a < i + 5; ++a) {
-      double weight = 1.0;
-      for (std::size_t b = i; b < i + 5; ++b) {
-        if (b != a)
-          weight *= (centres_[i + 5] - centres_[b]) / (centres_[a] - centres_[b]);
-      }
-      prediction += weight * means_[a];
+    for (int a = 0; a < 5; ++a) {
+      const double weight =
+          quotients[4 * a] * quotients[4 * a + 1] * quotients[4 * a + 2] * quotients[4 * a + 3];
+      prediction += weight * means_[i + static_cast<std::size_t>(a)];
       variance += weight * weight;
     }
     curve_[i] = (means_[i + 5] - prediction).cwiseAbs() / std::sqrt(variance);
   }
-  for (int c = 0; c < 6; ++c) {
-    scratch_.clear();
-    for (std::size_t j = 5; j + 6 <= count; ++j) {
-      double e = std::min({step_[j - 1][c], step_[j][c], chord_[j - 1][c], chord_[j][c], chord_[j + 1][c]});
-      for (std::size_t i = j - 5; i <= j; ++i)
-        e = std::min(e, curve_[i][c]);
-      scratch_.push_back(e);
-    }
-    const std::size_t middle = scratch_.size() / 2;
-    std::nth_element(scratch_.begin(), scratch_.begin() + static_cast<std::ptrdiff_t>(middle),
-                     scratch_.end());
-    noise_[c] = scratch_[middle] / kResidualMedian;
+  // Each interval's smallest residual, all six components at once (cwiseMin is std::min, element by
+  // element), into one column of minima_ per component; the noise is each column's median.
+  const std::size_t scored = count - 10;
+  minima_.resize(6 * scored);
+  for (std::size_t j = 5; j + 6 <= count; ++j) {
+    Twist e =
+        step_[j - 1].cwiseMin(step_[j]).cwiseMin(chord_[j - 1]).cwiseMin(chord_[j]).cwiseMin(chord_[j + 1]);
+    for (std::size_t i = j - 5; i <= j; ++i)
+      e = e.cwiseMin(curve_[i]);
+    for (std::size_t c = 0; c < 6; ++c)
+      minima_[c * scored + j - 5] = e[static_cast<int>(c)];
+  }
+  const std::size_t middle = scored / 2;
+  for (std::size_t c = 0; c < 6; ++c) {
+    const auto column = minima_.begin() + static_cast<std::ptrdiff_t>(c * scored);
+    std::nth_element(column, column + static_cast<std::ptrdiff_t>(middle),
+                     column + static_cast<std::ptrdiff_t>(scored));
+    noise_[static_cast<int>(c)] = column[static_cast<std::ptrdiff_t>(middle)] / kResidualMedian;
   }
 }
 
