@@ -55,6 +55,39 @@ double lineTestLimit(double dof) {
   return dof * root * root * root;
 }
 
+/// The k-th smallest (from 0) of values[0, n), which is what std::nth_element puts at k (the values are
+/// never NaN), found without nth_element's hard-to-predict branches: three-way partitions around a median
+/// of three, each copying the values into the half of `buffer` (resized to 2 n) that was not read.
+double kthSmallest(const double* values, std::size_t n, std::size_t k, std::vector<double>& buffer) {
+  buffer.resize(2 * n);
+  double* const halves[2] = {buffer.data(), buffer.data() + n};
+  for (int half = 0;; half = 1 - half) {
+    const double a = values[0], b = values[n / 2], c = values[n - 1];
+    const double pivot = std::max(std::min(a, b), std::min(std::max(a, b), c));
+    // Smaller values to the front, larger to the back; each value is written to both ends of the gap
+    // between them and kept where the comparisons say. The gap ends up as the values equal to the pivot.
+    double* const to = halves[half];
+    std::size_t below = 0, above = n;
+    for (std::size_t i = 0; i < n; ++i) {
+      const double value = values[i];
+      to[below] = value;
+      to[above - 1] = value;
+      below += value < pivot ? 1 : 0;
+      above -= pivot < value ? 1 : 0;
+    }
+    if (k < below) {
+      n = below;
+      values = to;
+    } else if (k >= above) {
+      k -= above;
+      n -= above;
+      values = to + above;
+    } else {
+      return pivot;
+    }
+  }
+}
+
 /// Least-squares line y = alpha + beta x over running sums; residual sum of squares.
 struct LineSums {
   double n = 0, sx = 0, sy = 0, sxx = 0, sxy = 0, syy = 0;
@@ -221,10 +254,7 @@ void TwistMotion::estimateNoise() {
   const std::size_t count = means_.size();
   noise_.setZero();
   // The floor: twist differences that move a point by less than 0.01 mm over a typical interval.
-  scratch_.assign(durations_.begin(), durations_.end());
-  std::nth_element(scratch_.begin(), scratch_.begin() + static_cast<std::ptrdiff_t>(count / 2),
-                   scratch_.end());
-  const double typical = scratch_[count / 2];
+  const double typical = kthSmallest(durations_.data(), count, count / 2, scratch_);
   floor_.head<3>().setConstant(kFloorDisplacement / typical);
   floor_.tail<3>().setConstant(kFloorAngle / typical);
   if (count < kMinNoiseIntervals + 10)
@@ -283,12 +313,9 @@ void TwistMotion::estimateNoise() {
       minima_[c * scored + j - 5] = e[static_cast<int>(c)];
   }
   const std::size_t middle = scored / 2;
-  for (std::size_t c = 0; c < 6; ++c) {
-    const auto column = minima_.begin() + static_cast<std::ptrdiff_t>(c * scored);
-    std::nth_element(column, column + static_cast<std::ptrdiff_t>(middle),
-                     column + static_cast<std::ptrdiff_t>(scored));
-    noise_[static_cast<int>(c)] = column[static_cast<std::ptrdiff_t>(middle)] / kResidualMedian;
-  }
+  for (std::size_t c = 0; c < 6; ++c)
+    noise_[static_cast<int>(c)] =
+        kthSmallest(&minima_[c * scored], scored, middle, scratch_) / kResidualMedian;
 }
 
 void TwistMotion::fitInterval(std::size_t j, int c, double& mean, double& slope) const {
