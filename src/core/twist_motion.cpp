@@ -45,11 +45,47 @@ void expCoefficients(double angle, double& a, double& b, double& c) {
   }
 }
 
+/// The quartic stencil's points b != a, for a = 0 to 4 (four each, increasing): its quotients' order.
+constexpr int kQuarticOther[20] = {1, 2, 3, 4, 0, 2, 3, 4, 0, 1, 3, 4, 0, 1, 2, 4, 0, 1, 2, 3};
+
 /// Chi-square quantile for `dof` degrees of freedom at kTestQuantile (Wilson-Hilferty).
 double lineTestLimit(double dof) {
   const double k = 2.0 / (9.0 * dof);
   const double root = 1.0 - k + kTestQuantile * std::sqrt(k);
   return dof * root * root * root;
+}
+
+/// The k-th smallest (from 0) of values[0, n), which is what std::nth_element puts at k (the values are
+/// never NaN), found without nth_element's hard-to-predict branches: three-way partitions around a median
+/// of three, each copying the values into the half of `buffer` (resized to 2 n) that was not read.
+double kthSmallest(const double* values, std::size_t n, std::size_t k, std::vector<double>& buffer) {
+  buffer.resize(2 * n);
+  double* const halves[2] = {buffer.data(), buffer.data() + n};
+  for (int half = 0;; half = 1 - half) {
+    const double a = values[0], b = values[n / 2], c = values[n - 1];
+    const double pivot = std::max(std::min(a, b), std::min(std::max(a, b), c));
+    // Smaller values to the front, larger to the back; each value is written to both ends of the gap
+    // between them and kept where the comparisons say. The gap ends up as the values equal to the pivot.
+    double* const to = halves[half];
+    std::size_t below = 0, above = n;
+    for (std::size_t i = 0; i < n; ++i) {
+      const double value = values[i];
+      to[below] = value;
+      to[above - 1] = value;
+      below += value < pivot ? 1 : 0;
+      above -= pivot < value ? 1 : 0;
+    }
+    if (k < below) {
+      n = below;
+      values = to;
+    } else if (k >= above) {
+      k -= above;
+      n -= above;
+      values = to + above;
+    } else {
+      return pivot;
+    }
+  }
 }
 
 /// Least-squares line y = alpha + beta x over running sums; residual sum of squares.
@@ -137,7 +173,9 @@ bool TwistMotion::gatherSamples(const MotionSource& raw, TimeNs begin, TimeNs en
   // appendSampleTimes gives times strictly inside; the margins include the samples bracketing the sweep.
   const TimeNs horizon = secondsToNs(std::max(kNoiseHorizon, half));
   raw.appendSampleTimes(begin - horizon - 1, end + horizon + 1, times_);
-  std::sort(times_.begin(), times_.end());
+  // Sources report their times in order (tf, PoseSamples): sorting is then a check.
+  if (!std::is_sorted(times_.begin(), times_.end()))
+    std::sort(times_.begin(), times_.end());
   times_.erase(std::unique(times_.begin(), times_.end()), times_.end());
   const auto after_begin = std::upper_bound(times_.begin(), times_.end(), begin);
   const auto at_end = std::lower_bound(times_.begin(), times_.end(), end);
@@ -155,46 +193,60 @@ bool TwistMotion::gatherSamples(const MotionSource& raw, TimeNs begin, TimeNs en
     cache_.clear();
   cache_begin_ = begin;
   cache_source_ = &raw;
-  const auto query = [&](std::size_t i, Sample& sample) {
+  // samples_[i] is the answer at times_[i]. The queries walk outwards from the sweep's first sample, so
+  // one iterator walks the cache along (`at`: the first cached sample at or after the time asked) rather
+  // than a search per sample.
+  samples_.resize(times_.size());
+  auto at = cachedAt(times_[first]);
+  const auto seek = [&](TimeNs time) {
+    while (at != cache_.begin() && std::prev(at)->time >= time)
+      --at;
+    while (at != cache_.end() && at->time < time)
+      ++at;
+  };
+  const auto query = [&](std::size_t i) {
     const TimeNs time = times_[i];
-    const auto cached = cachedAt(time);
-    if (cached != cache_.end() && cached->time == time) {
-      sample = *cached;
-      return true;
+    seek(time);
+    if (at == cache_.end() || at->time != time) {
+      mrpt::poses::CPose3D pose;
+      try {
+        pose = raw.basePose(time);
+      } catch (const MotionUnavailable&) {
+        return false;
+      }
+      at =
+          cache_.insert(at, {time, detail::rotationOf(pose), detail::translationOf(pose), Twist::Zero(), -1});
     }
-    try {
-      const mrpt::poses::CPose3D pose = raw.basePose(time);
-      sample = {time, detail::rotationOf(pose), detail::translationOf(pose), Twist::Zero(), -1};
-    } catch (const MotionUnavailable&) {
-      return false;
-    }
-    cache_.insert(cached, sample);
+    samples_[i] = *at;
     return true;
   };
   // From the sweep's first sample outwards, stopping where the source no longer answers (a chain's
-  // links end at different times).
-  std::vector<Sample> before;
-  Sample sample;
-  for (std::size_t i = first + 1; i-- > 0;) {
-    if (!query(i, sample)) {
-      if (i == first)
+  // links end at different times): samples_[low, high) are answered.
+  std::size_t low = first + 1;
+  while (low > 0) {
+    if (!query(low - 1)) {
+      if (low - 1 == first)
         return false;
       break;
     }
-    before.push_back(sample);
+    --low;
   }
-  samples_.assign(before.rbegin(), before.rend());
-  for (std::size_t i = first + 1; i < times_.size(); ++i) {
-    if (!query(i, sample)) {
-      if (i <= last)
+  // Where the oldest sample is kept; the forward walk inserts after it only.
+  seek(times_[low]);
+  const auto oldest = at - cache_.begin();
+  std::size_t high = first + 1;
+  while (high < times_.size()) {
+    if (!query(high)) {
+      if (high <= last)
         return false;
       break;
     }
-    samples_.push_back(sample);
+    ++high;
   }
+  samples_.erase(samples_.begin() + static_cast<std::ptrdiff_t>(high), samples_.end());
+  samples_.erase(samples_.begin(), samples_.begin() + static_cast<std::ptrdiff_t>(low));
   // Forget what no later sweep's window reaches.
-  const TimeNs oldest = samples_.front().time;
-  cache_.erase(cache_.begin(), cachedAt(oldest));
+  cache_.erase(cache_.begin(), cache_.begin() + oldest);
   return samples_.size() >= 2;
 }
 
@@ -202,10 +254,7 @@ void TwistMotion::estimateNoise() {
   const std::size_t count = means_.size();
   noise_.setZero();
   // The floor: twist differences that move a point by less than 0.01 mm over a typical interval.
-  scratch_.assign(durations_.begin(), durations_.end());
-  std::nth_element(scratch_.begin(), scratch_.begin() + static_cast<std::ptrdiff_t>(count / 2),
-                   scratch_.end());
-  const double typical = scratch_[count / 2];
+  const double typical = kthSmallest(durations_.data(), count, count / 2, scratch_);
   floor_.head<3>().setConstant(kFloorDisplacement / typical);
   floor_.tail<3>().setConstant(kFloorAngle / typical);
   if (count < kMinNoiseIntervals + 10)
@@ -218,44 +267,55 @@ void TwistMotion::estimateNoise() {
   // step_[k]: |m_k+1 - m_k| / sqrt(2); chord_[k]: m_k from the line through k-1 and k+1; curve_[i]: m_i+5
   // from the quartic through i..i+4 (Lagrange extrapolation: a smooth curve's twist, rough ground at
   // 2-3 Hz, is explained by it to 0.2 % of its amplitude at 50 Hz).
+  // Only the stencils around the intervals j in [5, count - 6] scored below are computed.
   step_.resize(count);
   chord_.resize(count);
   curve_.resize(count);
-  for (std::size_t k = 0; k + 1 < count; ++k)
+  for (std::size_t k = 4; k + 6 <= count; ++k)
     step_[k] = (means_[k + 1] - means_[k]).cwiseAbs() / std::sqrt(2.0);
-  for (std::size_t k = 1; k + 1 < count; ++k) {
+  for (std::size_t k = 4; k + 5 <= count; ++k) {
     const double w_before = (centres_[k + 1] - centres_[k]) / (centres_[k + 1] - centres_[k - 1]);
     const double w_after = 1.0 - w_before;
     chord_[k] = (means_[k] - w_before * means_[k - 1] - w_after * means_[k + 1]).cwiseAbs() /
                 std::sqrt(1.0 + w_before * w_before + w_after * w_after);
   }
   for (std::size_t i = 0; i + 5 < count; ++i) {
+    // Point a's weight is the product over b != a of (centre_5 - centre_b) / (centre_a - centre_b), in
+    // increasing b (the order fixes its rounding). The twenty quotients do not depend on each other:
+    // divided as one array, two at a time.
+    const double* centre = &centres_[i];
+    Eigen::Array<double, 20, 1> numerators, denominators;
+    for (int n = 0; n < 20; ++n) {
+      numerators[n] = centre[5] - centre[kQuarticOther[n]];
+      denominators[n] = centre[n / 4] - centre[kQuarticOther[n]];
+    }
+    const Eigen::Array<double, 20, 1> quotients = numerators / denominators;
     Twist prediction = Twist::Zero();
     double variance = 1.0;
-    for (std::size_t a = i; a < i + 5; ++a) {
-      double weight = 1.0;
-      for (std::size_t b = i; b < i + 5; ++b) {
-        if (b != a)
-          weight *= (centres_[i + 5] - centres_[b]) / (centres_[a] - centres_[b]);
-      }
-      prediction += weight * means_[a];
+    for (int a = 0; a < 5; ++a) {
+      const double weight =
+          quotients[4 * a] * quotients[4 * a + 1] * quotients[4 * a + 2] * quotients[4 * a + 3];
+      prediction += weight * means_[i + static_cast<std::size_t>(a)];
       variance += weight * weight;
     }
     curve_[i] = (means_[i + 5] - prediction).cwiseAbs() / std::sqrt(variance);
   }
-  for (int c = 0; c < 6; ++c) {
-    scratch_.clear();
-    for (std::size_t j = 5; j + 6 <= count; ++j) {
-      double e = std::min({step_[j - 1][c], step_[j][c], chord_[j - 1][c], chord_[j][c], chord_[j + 1][c]});
-      for (std::size_t i = j - 5; i <= j; ++i)
-        e = std::min(e, curve_[i][c]);
-      scratch_.push_back(e);
-    }
-    const std::size_t middle = scratch_.size() / 2;
-    std::nth_element(scratch_.begin(), scratch_.begin() + static_cast<std::ptrdiff_t>(middle),
-                     scratch_.end());
-    noise_[c] = scratch_[middle] / kResidualMedian;
+  // Each interval's smallest residual, all six components at once (cwiseMin is std::min, element by
+  // element), into one column of minima_ per component; the noise is each column's median.
+  const std::size_t scored = count - 10;
+  minima_.resize(6 * scored);
+  for (std::size_t j = 5; j + 6 <= count; ++j) {
+    Twist e =
+        step_[j - 1].cwiseMin(step_[j]).cwiseMin(chord_[j - 1]).cwiseMin(chord_[j]).cwiseMin(chord_[j + 1]);
+    for (std::size_t i = j - 5; i <= j; ++i)
+      e = e.cwiseMin(curve_[i]);
+    for (std::size_t c = 0; c < 6; ++c)
+      minima_[c * scored + j - 5] = e[static_cast<int>(c)];
   }
+  const std::size_t middle = scored / 2;
+  for (std::size_t c = 0; c < 6; ++c)
+    noise_[static_cast<int>(c)] =
+        kthSmallest(&minima_[c * scored], scored, middle, scratch_) / kResidualMedian;
 }
 
 void TwistMotion::fitInterval(std::size_t j, int c, double& mean, double& slope) const {
@@ -332,6 +392,8 @@ const MotionSource& TwistMotion::prepare(const MotionSource& raw, TimeNs begin, 
   means_.resize(intervals);
   durations_.resize(intervals);
   centres_.resize(intervals);
+  // The cache starts at samples_.front() and holds the others in order: one iterator walks it along.
+  auto cached = cache_.begin();
   for (std::size_t k = 0; k < intervals; ++k) {
     const Sample& a = samples_[k];
     const Sample& b = samples_[k + 1];
@@ -341,7 +403,8 @@ const MotionSource& TwistMotion::prepare(const MotionSource& raw, TimeNs begin, 
       const Eigen::Matrix3d relative_rotation = a.rotation.transpose() * b.rotation;
       const Eigen::Vector3d relative_translation = a.rotation.transpose() * (b.translation - a.translation);
       means_[k] = se3Log(relative_rotation, relative_translation) / durations_[k];
-      const auto cached = cachedAt(a.time);
+      while (cached != cache_.end() && cached->time < a.time)
+        ++cached;
       if (cached != cache_.end() && cached->time == a.time) {
         cached->mean = means_[k];
         cached->mean_until = b.time;

@@ -121,7 +121,8 @@ class TwistMotion final : public MotionSource {
   TimeNs end_time_ = 0;
   std::size_t smoothed_intervals_ = 0;
   bool screws_ = false;
-  std::vector<double> scratch_;
+  std::vector<double> scratch_;  // estimateNoise()'s buffer for medians
+  std::vector<double> minima_;   // estimateNoise()'s smallest residual per interval, a column per component
   std::vector<Twist> step_, chord_, curve_;  // estimateNoise()'s residuals per stencil
 };
 
