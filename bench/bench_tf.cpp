@@ -47,14 +47,17 @@ sim::LidarModel modelNamed(const std::string& name) {
 /// [s] of scans in a recording: long enough that the scans cycle back to the first (which restarts the
 /// twist fit's cache, as a bag played in a loop does) rarely, as on a live stream.
 constexpr double kRecordingSeconds = 10.0;
+/// [s] what tf2's buffer and TfMotionSource's sample times keep: all of a recording (TfMotionSource's
+/// default keeps 10 s, and would lose the first samples of the recording's 10.3 s of tf).
+constexpr double kKeptSeconds = 2.0 * kRecordingSeconds + 10.0;
 
 /// Scans of one sensor over kRecordingSeconds of the arc, with tf for all of it.
 struct Recording {
   explicit Recording(const sim::LidarModel& lidar)
       : model(lidar),
         trajectory({-2.0, -1.0, 0.3}, 6.0, 5.0),
-        buffer(ros::Duration(2.0 * kRecordingSeconds + 10.0)),
-        motion(buffer, "odom", "base_link") {
+        buffer(ros::Duration(kKeptSeconds)),
+        motion(buffer, "odom", "base_link", core::secondsToNs(kKeptSeconds)) {
     const sim::World world = sim::World::demoRoom();
     geometry_msgs::TransformStamped transform;
     transform.header.frame_id = "base_link";
