@@ -92,6 +92,8 @@ void KnotTrajectory::build(TimeNs origin, double span_begin, double span_end, Ti
   std::vector<TimeNs>& times = scratch_times_;
   std::vector<mrpt::poses::CPose3D>& base_poses = scratch_poses_;
   std::vector<mrpt::poses::CPose3D> lefts;
+  mount_rotation_ = detail::rotationOf(mount);
+  mount_translation_ = detail::translationOf(mount);
   for (;;) {
     times.clear();
     times.push_back(begin_time);
@@ -116,8 +118,6 @@ void KnotTrajectory::build(TimeNs origin, double span_begin, double span_end, Ti
             ? base_poses[static_cast<std::size_t>(reference_knot - times.begin())]
             : motion.basePose(reference_time);
     const mrpt::poses::CPose3D laser_from_reference_base = (-mount) + (-base_at_reference);
-    mount_rotation_ = detail::rotationOf(mount);
-    mount_translation_ = detail::translationOf(mount);
 
     knot_offsets_.resize(times.size());
     lefts.clear();
@@ -169,9 +169,7 @@ void KnotTrajectory::build(TimeNs origin, double span_begin, double span_end, Ti
                                              (-s * local.x() + c * local.y()) / determinant, 0.0);
       segment.translation_step.setZero();
     }
-    Eigen::Matrix3d cross;
-    cross << 0.0, -segment.axis.z(), segment.axis.y(), segment.axis.z(), 0.0, -segment.axis.x(),
-        -segment.axis.y(), segment.axis.x(), 0.0;
+    const Eigen::Matrix3d cross = detail::skew(segment.axis);
     const Eigen::Matrix3d left_cross = segment.left_rotation * cross;
     const Eigen::Matrix3d left_cross2 = left_cross * cross;
     segment.rotation_base = segment.left_rotation * mount_rotation_;
@@ -318,10 +316,6 @@ Interpolation parseInterpolation(const std::string& text) {
   if (text == "twist")
     return Interpolation::kTwist;
   throw InvalidInput("interpolation", "must be linear or twist, got '" + text + "'");
-}
-
-const char* interpolationName(Interpolation interpolation) {
-  return interpolation == Interpolation::kLinear ? "linear" : "twist";
 }
 
 void DeskewConfig::validate() const {

@@ -25,12 +25,6 @@ constexpr double kFloorAngle = 1e-6;         // [rad]
 /// Standard normal quantile of the line test (one-sided 99.9 %).
 constexpr double kTestQuantile = 3.09;
 
-Eigen::Matrix3d skew(const Eigen::Vector3d& v) {
-  Eigen::Matrix3d k;
-  k << 0.0, -v.z(), v.y(), v.z(), 0.0, -v.x(), -v.y(), v.x(), 0.0;
-  return k;
-}
-
 /// sin(t)/t, (1-cos t)/t^2, (t-sin t)/t^3 for t = |phi|, with series near 0.
 void expCoefficients(double angle, double& a, double& b, double& c) {
   const double t2 = angle * angle;
@@ -118,7 +112,7 @@ void se3Exp(const Twist& xi, Eigen::Matrix3d& rotation, Eigen::Vector3d& transla
   const Eigen::Vector3d phi = xi.tail<3>();
   double a, b, c;
   expCoefficients(phi.norm(), a, b, c);
-  const Eigen::Matrix3d k = skew(phi);
+  const Eigen::Matrix3d k = detail::skew(phi);
   const Eigen::Matrix3d k2 = k * k;
   rotation = Eigen::Matrix3d::Identity() + a * k + b * k2;
   translation = rho + b * (k * rho) + c * (k2 * rho);
@@ -133,7 +127,7 @@ Twist se3Log(const Eigen::Matrix3d& rotation, const Eigen::Vector3d& translation
   expCoefficients(angle, a, b, c);
   const double t2 = angle * angle;
   const double d = t2 < 1e-6 ? 1.0 / 12.0 + t2 / 720.0 : (1.0 - a / (2.0 * b)) / t2;
-  const Eigen::Matrix3d k = skew(phi);
+  const Eigen::Matrix3d k = detail::skew(phi);
   Twist xi;
   xi.head<3>() = translation - 0.5 * (k * translation) + d * (k * (k * translation));
   xi.tail<3>() = phi;

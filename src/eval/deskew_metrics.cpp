@@ -141,8 +141,8 @@ int main(int argc, char** argv) {
       std::printf("  raw            %s  (%zu points)\n", triple(result.raw).c_str(), result.raw.count);
       std::printf("  corrected      %s  (%zu points)\n", triple(result.cloud).c_str(), result.cloud.count);
       std::printf("  corrected scan %s  (%zu filled bins, %zu = %.2f %% farther than 10 mm)\n",
-                  triple(result.scan).c_str(), result.scan_filled_bins, result.scan_over_1cm,
-                  result.scan_filled_bins ? 100.0 * result.scan_over_1cm / result.scan_filled_bins : 0.0);
+                  triple(result.scan).c_str(), result.scan.count, result.scan_over_1cm,
+                  result.scan.count ? 100.0 * result.scan_over_1cm / result.scan.count : 0.0);
       std::printf("  laser_geometry %s  (%zu points)\n", triple(result.laser_geometry).c_str(),
                   result.laser_geometry.count);
       std::printf(

@@ -168,7 +168,6 @@ Evaluation evaluateBag(const std::string& bag_path, const std::string& truth_pat
   evaluation.raw = sim::errorStats(raw).scaled(1e3);
   evaluation.cloud = sim::errorStats(cloud).scaled(1e3);
   evaluation.scan = sim::errorStats(rebinned_scan).scaled(1e3);
-  evaluation.scan_filled_bins = rebinned_scan.size();
   evaluation.laser_geometry = sim::errorStats(laser_geometry_errors).scaled(1e3);
   evaluation.cloud_to_hit = sim::errorStats(to_hit).scaled(1e3);
   evaluation.noise_only_rms = noise_count ? 1e3 * std::sqrt(noise_sum_squares / noise_count) : 0.0;

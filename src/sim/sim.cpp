@@ -237,9 +237,7 @@ NoisyOdometry::NoisyOdometry(const Trajectory& truth, double begin_time, double 
       factors.yaw = 1.0 + relative_noise * normal(rng);
     }
     const Pose2 next_truth = truth.pose(stepStart(j + 1));
-    const Pose2 increment = step_truth_[j].between(next_truth);
-    step_odometry_.push_back(step_odometry_[j].compose(
-        {increment.x * factors.x, increment.y * factors.y, increment.yaw * factors.yaw}));
+    step_odometry_.push_back(measured(j, next_truth));
     step_truth_.push_back(next_truth);
   }
 }
@@ -257,7 +255,11 @@ Pose2 NoisyOdometry::pose(double t) const {
   const std::size_t j = stepAt(t);
   if (relative_noise_ == 0.0)
     return truth_.pose(t);
-  const Pose2 increment = step_truth_[j].between(truth_.pose(t));
+  return measured(j, truth_.pose(t));
+}
+
+Pose2 NoisyOdometry::measured(std::size_t j, const Pose2& true_pose) const {
+  const Pose2 increment = step_truth_[j].between(true_pose);
   const Factors& factors = factors_[j];
   return step_odometry_[j].compose(
       {increment.x * factors.x, increment.y * factors.y, increment.yaw * factors.yaw});

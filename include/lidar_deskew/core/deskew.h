@@ -27,7 +27,6 @@ enum class Interpolation {
 };
 /// Parses "linear" | "twist". Throws InvalidInput("interpolation") otherwise.
 Interpolation parseInterpolation(const std::string& text);
-const char* interpolationName(Interpolation interpolation);
 
 struct DeskewConfig {
   /// The time all points are re-expressed at.

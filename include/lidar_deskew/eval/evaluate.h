@@ -36,9 +36,8 @@ struct Evaluation {
   ErrorStats raw;    ///< raw beams drawn in the laser frame at the scan stamp
   ErrorStats cloud;  ///< our corrected points
   ErrorStats scan;   ///< our re-binned LaserScan's endpoints
-  /// Bins of our re-binned LaserScan with a return (scan.count) and, of them, those whose endpoint lies
-  /// farther than 10 mm from the true walls.
-  std::size_t scan_filled_bins = 0;
+  /// Of the re-binned LaserScan's bins with a return (scan.count), those whose endpoint lies farther than
+  /// 10 mm from the true walls.
   std::size_t scan_over_1cm = 0;
   ErrorStats laser_geometry;  ///< laser_geometry, target = laser frame at the stamp, fixed = odom
   /// Distance of our corrected points to their own beam's true hit point [mm] (noise shows in full).

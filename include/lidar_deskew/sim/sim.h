@@ -192,6 +192,8 @@ class NoisyOdometry final : public Trajectory {
 
  private:
   std::size_t stepAt(double t) const;
+  /// odom(s_j) (+) the increment from truth(s_j) to `true_pose`, scaled by step j's factors.
+  Pose2 measured(std::size_t j, const Pose2& true_pose) const;
 
   const Trajectory& truth_;
   double begin_time_;
