@@ -113,8 +113,9 @@ point to the true walls, in mm (RMS / 95th percentile / max):
 How to read them: with noise off, what is left is each method's own error. tf interpolates linearly
 between its ${tf_rate} Hz samples; on the 6 m/s, 5 rad/s arc that polyline is off the true arc by up to
 v·w·h²/8 = 1.5 mm at 50 Hz. Our correction follows the twist between tf's samples instead, which is the
-arc itself; what its high-speed arc rows show is the chord between its 5 ms knots (0.09 mm), and the
-varying rows the same (the changes fall on samples; tables at 10, 20 and 50 Hz below). laser_geometry is exact
+arc itself, with knots at the samples joined by screws: its arc rows are exact. The varying rows show
+the chords between 5 ms knots where the twist changes within an interval (0.16 mm at most; the changes
+fall on samples; tables at 10, 20 and 50 Hz below). laser_geometry is exact
 for a pure translation and for a spin about the laser (the chord is the path), and off on arcs and
 varying motion. The re-binned scan is exact where a ray falls between two returns on one wall; at a
 corner it follows both walls' lines to where they meet, along a wall at a grazing angle (returns
@@ -135,8 +136,7 @@ body twist of each sample interval, fits it over neighbouring intervals where th
 velocity at any tf rate, and for a twist that changes linearly or steps at a sample. Each row: the same
 bag scored both ways, RMS / max in mm against the true walls; laser_geometry (two poses per sweep) as
 above, from the twist run (it does not depend on our interpolation). Noise off shows each method's own
-error; what remains for twist on the arcs is the 5 ms knots' chord (v·w·h²/8 = 0.09 mm at 6 m/s and
-5 rad/s). ILD26TRI/varying flips its turn rate every 40 ms: tf at 10 or 20 Hz samples that zigzag too
+error; on the arcs twist is exact (knots at the samples, joined by screws). ILD26TRI/varying flips its turn rate every 40 ms: tf at 10 or 20 Hz samples that zigzag too
 sparsely for any interpolation to recover it (both methods, and laser_geometry, are off by the same
 decimetres); at 50 Hz the flips fall on samples and twist follows them.
 
