@@ -80,7 +80,7 @@ Calibration calibrateBag(const CalibrateOptions& options) {
   const auto mount = tf->mount(calibration.frame, error);
   if (!mount)
     throw std::runtime_error(options.input + ": no laser mount: " + error);
-  const core::TimingFit fit(std::move(scans), *mount, tf->motion(), 0.0, options.fit);
+  core::TimingFit fit(std::move(scans), *mount, tf->motion(), 0.0, options.fit);
   calibration.stamp_period = fit.nominalPeriod();
   calibration.stamp_period_sigma = fit.nominalPeriodSigma();
   calibration.estimate = core::estimateTiming(fit, options.fit);
@@ -96,29 +96,39 @@ std::string describe(const Calibration& calibration) {
        << " ms +- " << number(calibration.stamp_period_sigma * 1e3, 3) << " ms by their stamps\n";
   text << "  motion: " << estimate.turning_scans << " scans turn at 0.3 rad/s or faster (fastest "
        << number(estimate.fastest_turn, 2) << " rad/s); " << estimate.pairs
-       << " overlapping pairs with motion\n";
+       << " overlapping pairs with motion, " << estimate.turning_pairs << " with a turning scan, "
+       << estimate.changing_pairs << " whose turn rates differ; odometry every "
+       << number(estimate.odometry_interval * 1e3, 0) << " ms\n";
   if (!estimate.told) {
-    text << "  " << estimate.why << "\n";
+    text << "  nothing told (" << core::toString(estimate.cause) << "): " << estimate.why << "\n";
     return text.str();
   }
   const core::TimingConfig& timing = estimate.timing;
-  text << "  first beam - stamp: " << number(estimate.time_offset * 1e3, 2) << " ms +- "
-       << number(estimate.offset_sigma * 1e3, 2) << " ms (1 sigma); the sweep lasts "
-       << number(calibration.sweep * 1e3, 2) << " ms";
-  if (timing.stamp_at == core::StampAt::kEnd)
-    text << ": stamped at the end of the sweep";
-  else if (timing.time_offset == 0.0)
-    text << ": stamped at the first beam, as ROS says";
-  text << "\n  beam order: "
+  if (estimate.offset_told) {
+    text << "  first beam - stamp: " << number(estimate.time_offset * 1e3, 2) << " ms +- "
+         << number(estimate.offset_sigma * 1e3, 2) << " ms (1 sigma, searched over +-"
+         << number(estimate.search_range * 1e3, 0) << " ms); the sweep lasts "
+         << number(calibration.sweep * 1e3, 2) << " ms";
+    if (timing.stamp_at == core::StampAt::kEnd)
+      text << ": stamped at the end of the sweep";
+    else if (timing.time_offset == 0.0)
+      text << ": stamped at the first beam, as ROS says";
+    text << "\n";
+  } else {
+    text << "  first beam - stamp: not told (" << core::toString(estimate.cause) << "): " << estimate.why
+         << ". The message's offset is kept\n";
+  }
+  text << "  beam order: "
        << (timing.beam_order == core::BeamOrder::kReversed ? "reversed" : "as the message says")
-       << " (held in " << number(estimate.order_confidence * 100.0, 0) << " % of resamples)\n";
+       << " (held in " << number(estimate.order_confidence * 100.0, 0) << " % of resamples of "
+       << estimate.block_scans << "-scan blocks)\n";
   text << "  period: ";
   if (estimate.period_estimated) {
     text << number(estimate.period * 1e3, 3) << " ms +- " << number(estimate.period_sigma * 1e3, 3)
          << " ms from the stamps; the message's "
          << (estimate.message_period > 0.0 ? "(" + number(estimate.message_period * 1e3, 3) + " ms) disagrees"
                                            : "is 0 (time_increment and scan_time)")
-         << "\n";
+         << " (held in " << number(estimate.period_confidence * 100.0, 0) << " % of resamples)\n";
   } else {
     text << number(estimate.message_period * 1e3, 3)
          << " ms as the message says (stamps: " << number(calibration.stamp_period * 1e3, 3) << " ms)\n";
@@ -127,9 +137,30 @@ std::string describe(const Calibration& calibration) {
        << "    raw (every beam at the stamp): " << consistency(estimate.raw) << "\n"
        << "    corrected, the message's timing: " << consistency(estimate.before) << "\n"
        << "    corrected, the estimated timing: " << consistency(estimate.after) << "\n";
-  text << (estimate.changed ? "  the message's timing is wrong: use the parameters below\n"
-                            : "  the message's timing fits: nothing to change\n");
+  if (!estimate.offset_told)
+    text << (estimate.changed
+                 ? "  the message's beam order or period is wrong: use the parameters below (the offset "
+                   "is the message's)\n"
+                 : "  the message's beam order and period fit; its offset could not be checked\n");
+  else
+    text << (estimate.changed ? "  the message's timing is wrong: use the parameters below\n"
+                              : "  the message's timing fits: nothing to change\n");
   return text.str();
+}
+
+void writeCurve(const Calibration& calibration, const std::string& path) {
+  std::ofstream out(path);
+  if (!out)
+    throw std::runtime_error(path + ": cannot write");
+  out << "# deskew_calibrate's score of " << calibration.scan_topic
+      << " against the offset (first beam - stamp), the chosen beam order and period\n"
+      << "search,offset_s,score_m\n";
+  for (const auto& [offset, score] : calibration.estimate.coarse_curve)
+    out << "coarse," << number(offset, 6) << "," << number(score, 6) << "\n";
+  for (const auto& [offset, score] : calibration.estimate.fine_curve)
+    out << "fine," << number(offset, 6) << "," << number(score, 6) << "\n";
+  if (!out.flush())
+    throw std::runtime_error(path + ": cannot write");
 }
 
 void writeTimingParams(const Calibration& calibration, const std::string& bag, const std::string& path) {
@@ -141,14 +172,22 @@ void writeTimingParams(const Calibration& calibration, const std::string& bag, c
   out << "# lidar_deskew timing of " << calibration.scan_topic << " (frame " << calibration.frame
       << "), estimated by deskew_calibrate\n# from " << bag << ": " << estimate.scans << " scans, "
       << estimate.pairs << " overlapping pairs, " << estimate.turning_scans << " turning.\n"
-      << "# first beam - stamp " << number(estimate.time_offset * 1e3, 2) << " +- "
-      << number(estimate.offset_sigma * 1e3, 2) << " ms; overlapping scans "
+      << (estimate.offset_told ? "# first beam - stamp " + number(estimate.time_offset * 1e3, 2) + " +- " +
+                                     number(estimate.offset_sigma * 1e3, 2) + " ms"
+                               : "# first beam - stamp NOT TOLD (" + core::toString(estimate.cause) +
+                                     "): the message's offset is kept")
+      << "; overlapping scans "
       << (estimate.before.pairs ? number(estimate.before.mean * 1e3, 2) + " mm" : std::string("-"))
       << " apart with the message's timing, " << number(estimate.after.mean * 1e3, 2) << " mm with this.\n"
       << "# Use: roslaunch lidar_deskew deskew.launch params:=" << path << "\n"
       << "#      rosrun lidar_deskew deskew_bag IN.bag OUT.bag --params " << path << "\n";
-  out << "stamp_at: " << core::toString(timing.stamp_at) << "\n";
-  out << "time_offset: " << number(timing.time_offset, 5) << "  # [s]\n";
+  if (estimate.offset_told) {
+    out << "stamp_at: " << core::toString(timing.stamp_at) << "\n";
+    out << "time_offset: " << number(timing.time_offset, 5) << "  # [s]\n";
+  } else {
+    out << "# stamp_at, time_offset: not written (the recording cannot tell them): yours or the defaults "
+           "hold\n";
+  }
   out << "beam_order: " << core::toString(timing.beam_order) << "\n";
   if (estimate.period_estimated) {
     out << "scan_period: " << number(timing.scan_period, 6) << "  # [s] one revolution\n";

@@ -15,7 +15,8 @@ namespace {
 void printUsage(std::FILE* to, const char* program) {
   std::fprintf(
       to,
-      "usage: %s IN.bag [--scan-topic T] [--output FILE.yaml] [--fixed-frame F] [--base-frame B]\n"
+      "usage: %s IN.bag [--scan-topic T] [--output FILE.yaml] [--curve FILE.csv] [--fixed-frame F]\n"
+      "          [--base-frame B]\n"
       "\n"
       "Estimates from a recording in which the robot turns the timing of a LaserScan topic: the offset\n"
       "between header.stamp and the first beam's true time (time_offset, or stamp_at: end), the beams'\n"
@@ -23,9 +24,16 @@ void printUsage(std::FILE* to, const char* program) {
       "data, the revolution period (scan_period, use_scan_period). Prints each with its uncertainty\n"
       "and how well overlapping scans agree before and after; writes the parameters to FILE.yaml, which\n"
       "`roslaunch lidar_deskew deskew.launch params:=FILE.yaml` and `deskew_bag --params FILE.yaml` read.\n"
-      "With too little turning to tell it says so, writes nothing and exits 3.\n"
+      "What the recording cannot tell is said, not guessed. Exit status:\n"
+      "  0  the whole timing told (written, or the message's fits)\n"
+      "  4  the beam order and the period told and written, the offset not (the motion was too uniform,\n"
+      "     the odometry too coarse, or no clear minimum): the message's offset is kept\n"
+      "  3  nothing told (too little turning, too few overlapping pairs, no fit better than raw):\n"
+      "     nothing written\n"
+      "  1  the bag, topic or tf could not be read; 2  bad arguments\n"
       "  --scan-topic T     the LaserScan topic (default: the bag's only one)\n"
       "  --output FILE      the parameter file to write (default: print only)\n"
+      "  --curve FILE       write the score against the offset (CSV) for the chosen order and period\n"
       "  --fixed-frame F    the frame the base moves in (default odom)\n"
       "  --base-frame B     the robot's base frame (default base_link)\n"
       "  --cloud-topic T    refused: clouds carry their own per-point times (set time_offset by hand)\n"
@@ -43,7 +51,7 @@ int usageError(const char* program, const std::string& message) {
 
 int main(int argc, char** argv) {
   bag::CalibrateOptions options;
-  std::string output;
+  std::string output, curve;
   std::map<std::string, std::string> frames;
   std::vector<std::string> positional;
   for (int a = 1; a < argc; ++a) {
@@ -53,7 +61,7 @@ int main(int argc, char** argv) {
       return 0;
     }
     if (arg == "--scan-topic" || arg == "--output" || arg == "--fixed-frame" || arg == "--base-frame" ||
-        arg == "--cloud-topic") {
+        arg == "--cloud-topic" || arg == "--curve") {
       if (a + 1 >= argc)
         return usageError(argv[0], arg + " needs a value");
       const std::string value = argv[++a];
@@ -61,6 +69,8 @@ int main(int argc, char** argv) {
         options.scan_topic = value;
       else if (arg == "--output")
         output = value;
+      else if (arg == "--curve")
+        curve = value;
       else if (arg == "--fixed-frame")
         frames["fixed_frame"] = value;
       else if (arg == "--base-frame")
@@ -84,14 +94,22 @@ int main(int argc, char** argv) {
     options.params = ros_adapter::DeskewParams::load(ros_adapter::TextParams(frames));
     const bag::Calibration calibration = bag::calibrateBag(options);
     std::printf("deskew_calibrate: %s\n", bag::describe(calibration).c_str());
+    if (!curve.empty() && !calibration.estimate.coarse_curve.empty()) {
+      bag::writeCurve(calibration, curve);
+      std::printf("wrote %s\n", curve.c_str());
+    }
     if (!calibration.estimate.told) {
       std::printf("nothing written\n");
       return 3;
     }
     if (!output.empty()) {
       bag::writeTimingParams(calibration, options.input, output);
-      std::printf("wrote %s\n", output.c_str());
+      std::printf(
+          "wrote %s%s\n", output.c_str(),
+          calibration.estimate.offset_told ? "" : " (the beam order and period; the offset is not told)");
     }
+    if (!calibration.estimate.offset_told)
+      return 4;
   } catch (const std::exception& error) {
     std::fprintf(stderr, "deskew_calibrate: %s\n", error.what());
     return 1;

@@ -21,31 +21,43 @@ T medianOf(std::vector<T> values) {
   return values[values.size() / 2];
 }
 
-/// Scores of every pair at each offset of a grid, for one beam order and period.
+/// Scores of every pair at each offset of a grid, for one beam order and period. Only pairs that the
+/// motion places at every offset of the grid count (`scored`), so every offset is scored on the same
+/// pairs; a pair without overlap counts as the cap.
 struct Curve {
   TimingConfig timing;                     // time_offset varies along the grid
   std::vector<double> offsets;             // [s]
-  std::vector<std::vector<double>> pairs;  // [offset][pair] distance [m], NaN as the cap
-  std::vector<double> mean;                // [offset]
+  std::vector<std::vector<double>> pairs;  // [offset][pair] distance [m], the cap where no overlap
+  std::vector<char> scored;                // [pair] placed at every offset
+  std::size_t scored_pairs = 0;
+  std::vector<double> mean;  // [offset] over the scored pairs
 };
 
 Curve evaluate(const TimingFit& fit, const TimingConfig& timing, const std::vector<double>& offsets,
-               double cap) {
+               bool coarse, double cap) {
   Curve curve;
   curve.timing = timing;
   curve.offsets = offsets;
+  curve.scored.assign(fit.pairs().size(), 1);
+  std::vector<char> scored;
   for (double offset : offsets) {
     TimingConfig shifted = timing;
     shifted.time_offset = offset;
-    std::vector<double> distances = fit.pairDistances(shifted);
-    double sum = 0.0;
-    for (double& distance : distances) {
-      if (!std::isfinite(distance))
-        distance = cap;
-      sum += distance;
+    std::vector<double> distances = fit.pairDistances(shifted, scored, coarse);
+    for (std::size_t p = 0; p < distances.size(); ++p) {
+      curve.scored[p] = curve.scored[p] && scored[p];
+      if (!std::isfinite(distances[p]))
+        distances[p] = cap;
     }
-    curve.mean.push_back(distances.empty() ? cap : sum / distances.size());
     curve.pairs.push_back(std::move(distances));
+  }
+  curve.scored_pairs = std::count(curve.scored.begin(), curve.scored.end(), 1);
+  const std::vector<double> ones(fit.pairs().size(), 1.0);
+  for (const std::vector<double>& distances : curve.pairs) {
+    double sum = 0.0;
+    for (std::size_t p = 0; p < distances.size(); ++p)
+      sum += curve.scored[p] ? distances[p] : 0.0;
+    curve.mean.push_back(curve.scored_pairs ? sum / curve.scored_pairs : cap);
   }
   return curve;
 }
@@ -58,9 +70,13 @@ std::vector<double> grid(double center, double half_width, double step) {
   return values;
 }
 
-/// The minimum of `values` over the evenly spaced `at`, refined by a parabola through its neighbours.
-std::pair<double, double> minimumOf(const std::vector<double>& at, const std::vector<double>& values) {
+/// The minimum of `values` over the evenly spaced `at`, refined by a parabola through its neighbours;
+/// `index` gets the grid point nearest it.
+std::pair<double, double> minimumOf(const std::vector<double>& at, const std::vector<double>& values,
+                                    std::size_t* index = nullptr) {
   const std::size_t k = std::min_element(values.begin(), values.end()) - values.begin();
+  if (index)
+    *index = k;
   if (k == 0 || k + 1 == values.size())
     return {at[k], values[k]};
   const double before = values[k - 1], here = values[k], after = values[k + 1];
@@ -72,19 +88,78 @@ std::pair<double, double> minimumOf(const std::vector<double>& at, const std::ve
   return {at[k] + shift * step, here - 0.125 * (before - after) * (before - after) / curvature};
 }
 
-/// Per-offset means of a curve with each pair weighted.
+/// Per-offset means of a curve's scored pairs, each pair weighted.
 std::vector<double> weightedMeans(const Curve& curve, const std::vector<double>& weights) {
   std::vector<double> means;
   double total = 0.0;
-  for (double weight : weights)
-    total += weight;
+  for (std::size_t p = 0; p < weights.size(); ++p)
+    total += curve.scored[p] ? weights[p] : 0.0;
   for (const std::vector<double>& distances : curve.pairs) {
     double sum = 0.0;
     for (std::size_t p = 0; p < distances.size(); ++p)
-      sum += weights[p] * distances[p];
-    means.push_back(total > 0.0 ? sum / total : 0.0);
+      sum += curve.scored[p] ? weights[p] * distances[p] : 0.0;
+    means.push_back(total > 0.0 ? sum / total : std::numeric_limits<double>::infinity());
   }
   return means;
+}
+
+/// One beam order and period: the offset searched coarsely over a window round `center` [s], widened
+/// while its best lies on the edge, then finely round the best.
+struct Candidate {
+  TimingConfig timing;  // order and period; time_offset unused
+  double period = 0.0;
+  Curve coarse, fine;
+  double range = 0.0;  // [s] the coarse window's half width
+  bool on_edge = false;
+  double offset = 0.0, value = 0.0;  // the fine minimum
+  std::size_t index = 0;             // its nearest fine grid point
+};
+
+Candidate search(const TimingFit& fit, const TimingConfig& timing, double period, double center,
+                 const TimingFitConfig& config) {
+  Candidate candidate;
+  candidate.timing = timing;
+  candidate.period = period;
+  const double step = std::min(config.coarse_step, period / 2.0);
+  candidate.range = std::max(config.search_range, config.search_periods * period);
+  double best = 0.0;
+  for (;;) {
+    candidate.coarse =
+        evaluate(fit, timing, grid(center, candidate.range, step), true, config.coarse_consistency.cap);
+    std::size_t k = 0;
+    best = minimumOf(candidate.coarse.offsets, candidate.coarse.mean, &k).first;
+    candidate.on_edge = k == 0 || k + 1 == candidate.coarse.offsets.size();
+    if (!candidate.on_edge || candidate.coarse.scored_pairs == 0 ||
+        2.0 * candidate.range > config.max_search_range + 1e-9)
+      break;
+    candidate.range *= 2.0;
+  }
+  // The fine search round the coarse best; the two measures' minima may lie apart (the fine one caps
+  // at a fifth of the coarse one's distance), so the window moves on while its best lies on its edge.
+  const double fine_step = std::min(config.resolution * 5.0, step / 4.0);
+  for (int moves = 0; moves < 8; ++moves) {
+    candidate.fine = evaluate(fit, timing, grid(best, step, fine_step), false, config.consistency.cap);
+    std::tie(candidate.offset, candidate.value) =
+        minimumOf(candidate.fine.offsets, candidate.fine.mean, &candidate.index);
+    if (candidate.index != 0 && candidate.index + 1 != candidate.fine.offsets.size())
+      break;
+    best = candidate.offset;
+  }
+  return candidate;
+}
+
+/// Mean over the pairs both candidates score of `a`'s distances at its fine grid point `ia` minus
+/// `b`'s at `ib`, each pair weighted: negative when `a` fits better. NaN when they share no pair.
+double compare(const Candidate& a, std::size_t ia, const Candidate& b, std::size_t ib,
+               const std::vector<double>& weights) {
+  double sum = 0.0, total = 0.0;
+  for (std::size_t p = 0; p < weights.size(); ++p) {
+    if (a.fine.scored[p] && b.fine.scored[p]) {
+      sum += weights[p] * (a.fine.pairs[ia][p] - b.fine.pairs[ib][p]);
+      total += weights[p];
+    }
+  }
+  return total > 0.0 ? sum / total : std::numeric_limits<double>::quiet_NaN();
 }
 
 std::string formatSeconds(double seconds) {
@@ -147,30 +222,41 @@ TimingFit::TimingFit(std::vector<PlanarScan> scans, const mrpt::poses::CPose3D& 
   for (const PlanarScan& scan : scans)
     message_periods.push_back(core::messagePeriod(scan));
   message_period_ = message_periods.empty() ? 0.0 : medianOf(message_periods);
+  all_scans_ = std::move(scans);
+  shift(0.0);
+}
+
+void TimingFit::shift(double offset) {
+  shift_ = offset;
+  scans_.clear();
+  motions_.clear();
+  pairs_.clear();
   const TimeNs period = secondsToNs(nominal_period_);
-  const TimeNs margin = secondsToNs(std::max(1.25 * nominal_period_, config.min_range) + 0.01);
-  for (PlanarScan& scan : scans) {
-    // Any offset searched and a sweep after it must be covered.
+  const TimeNs shift = secondsToNs(offset);
+  std::vector<double> gaps;
+  for (const PlanarScan& scan : all_scans_) {
     try {
-      (void)motion.basePose(scan.stamp - margin);
-      const mrpt::poses::CPose3D start = motion.basePose(scan.stamp);
-      const mrpt::poses::CPose3D end = motion.basePose(scan.stamp + period);
-      (void)motion.basePose(scan.stamp + margin + period);
+      const TimeNs begin = scan.stamp + shift;
+      const mrpt::poses::CPose3D start = motion_.basePose(begin);
+      const mrpt::poses::CPose3D end = motion_.basePose(begin + period);
       ScanMotion moved;
       moved.turn_rate = std::remainder(end.yaw() - start.yaw(), kTwoPi) / nominal_period_;  // (poses at hand)
       moved.speed = std::hypot(end.x() - start.x(), end.y() - start.y()) / nominal_period_;
       motions_.push_back(moved);
-      scans_.push_back(std::move(scan));
+      gaps.push_back(nsToSeconds(motion_.longestGap(begin, begin + period)));
+      scans_.push_back(scan);
     } catch (const MotionUnavailable&) {
     }
   }
   if (scans_.empty())
-    throw InvalidInput("scans", "motion covers none of them with a period to spare either side");
+    throw InvalidInput("scans", "motion covers none of them");
+  odometry_interval_ = medianOf(gaps);
   // Pairs that overlap under the nominal period with the stamp at the first beam, at the last, or the
   // beams reversed (a timing that far off distorts fast turns by metres), among scans of which one moves.
   TimingConfig nominal;
   nominal.scan_period = nominal_period_;
   nominal.use_scan_period = true;
+  nominal.time_offset = offset;
   TimingConfig at_end = nominal;
   at_end.stamp_at = StampAt::kEnd;
   TimingConfig reversed = nominal;
@@ -187,6 +273,16 @@ TimingFit::TimingFit(std::vector<PlanarScan> scans, const mrpt::poses::CPose3D& 
     if (moving(pair.first) || moving(pair.second))
       pairs_.push_back(pair);
   }
+  // The coarse search's pairs: at most coarse_pairs, spread evenly over the recording (pairs are in
+  // the order of their earlier scan).
+  coarse_pairs_.assign(pairs_.size(), 0);
+  coarse_scans_.assign(scans_.size(), 0);
+  const std::size_t coarse = std::min(config_.coarse_pairs, pairs_.size());
+  for (std::size_t k = 0; k < coarse; ++k) {
+    const std::size_t p = spreadIndex(k, coarse, pairs_.size());
+    coarse_pairs_[p] = 1;
+    coarse_scans_[pairs_[p].first] = coarse_scans_[pairs_[p].second] = 1;
+  }
 }
 
 std::size_t TimingFit::turningScans() const {
@@ -195,27 +291,44 @@ std::size_t TimingFit::turningScans() const {
 }
 
 PlacedScan TimingFit::placeOne(std::size_t i, const TimingConfig& timing, ScanDeskewer& deskewer,
-                               DeskewedScan& corrected) const {
+                               DeskewedScan& corrected, bool& placed, std::size_t stride) const {
   const PlanarScan& scan = scans_[i];
+  placed = false;
   try {
     deskewer.deskew(scan, resolveTiming(scan, timing), mount_, motion_, corrected);
-    return placeCorrected(corrected, motion_.basePose(corrected.reference_time) + mount_,
-                          std::abs(static_cast<double>(scan.angle_increment)));
+    PlacedScan result = placeCorrected(corrected, motion_.basePose(corrected.reference_time) + mount_,
+                                       std::abs(static_cast<double>(scan.angle_increment)), stride);
+    placed = true;
+    return result;
   } catch (const InvalidInput&) {
   } catch (const MotionUnavailable&) {
   }
   return {};
 }
 
-std::vector<PlacedScan> TimingFit::place(const TimingConfig& timing) const {
+std::vector<PlacedScan> TimingFit::place(const TimingConfig& timing, std::vector<char>* placed_scans,
+                                         bool coarse, const std::vector<char>* needed) const {
   DeskewConfig deskew;
   deskew.reference = Reference::kMiddle;
+  if (coarse)
+    deskew.interpolation = Interpolation::kLinear;
   ScanDeskewer deskewer(deskew);
   DeskewedScan corrected;
   std::vector<PlacedScan> placed;
   placed.reserve(scans_.size());
-  for (std::size_t i = 0; i < scans_.size(); ++i)
-    placed.push_back(placeOne(i, timing, deskewer, corrected));
+  if (placed_scans)
+    placed_scans->assign(scans_.size(), 0);
+  for (std::size_t i = 0; i < scans_.size(); ++i) {
+    bool ok = false;
+    // The coarse search places at most about 360 returns a scan (every k-th): it only has to find the
+    // valley.
+    const std::size_t stride = coarse ? (scans_[i].ranges.size() + 359) / 360 : 1;
+    placed.push_back(needed && !(*needed)[i]
+                         ? PlacedScan()
+                         : placeOne(i, timing, deskewer, corrected, ok, std::max<std::size_t>(1, stride)));
+    if (placed_scans)
+      (*placed_scans)[i] = ok;
+  }
   return placed;
 }
 
@@ -241,6 +354,23 @@ std::vector<double> TimingFit::pairDistances(const TimingConfig& timing) const {
   return pairDistances(place(timing));
 }
 
+std::vector<double> TimingFit::pairDistances(const TimingConfig& timing, std::vector<char>& scored,
+                                             bool coarse) const {
+  std::vector<char> placed_scans;
+  const std::vector<PlacedScan> placed =
+      place(timing, &placed_scans, coarse, coarse ? &coarse_scans_ : nullptr);
+  const ConsistencyConfig& measure = coarse ? config_.coarse_consistency : config_.consistency;
+  std::vector<double> distances(pairs_.size(), std::numeric_limits<double>::quiet_NaN());
+  scored.assign(pairs_.size(), 0);
+  for (std::size_t p = 0; p < pairs_.size(); ++p) {
+    const auto [earlier, later] = pairs_[p];
+    scored[p] = (!coarse || coarse_pairs_[p]) && placed_scans[earlier] && placed_scans[later];
+    if (scored[p] && !placed[earlier].empty() && !placed[later].empty())
+      distances[p] = pairDistance(placed[later], placed[earlier], measure);
+  }
+  return distances;
+}
+
 double TimingFit::score(const TimingConfig& timing) const {
   double sum = 0.0;
   const std::vector<double> distances = pairDistances(timing);
@@ -249,143 +379,259 @@ double TimingFit::score(const TimingConfig& timing) const {
   return distances.empty() ? config_.consistency.cap : sum / distances.size();
 }
 
-TimingEstimate estimateTiming(const TimingFit& fit, const TimingFitConfig& config) {
-  TimingEstimate estimate;
-  estimate.scans = fit.scanCount();
-  estimate.pairs = fit.pairs().size();
-  estimate.turning_scans = fit.turningScans();
-  for (const ScanMotion& motion : fit.motions())
-    estimate.fastest_turn = std::max(estimate.fastest_turn, std::abs(motion.turn_rate));
-  const double cap = config.consistency.cap;
-  estimate.raw = summarize(fit.pairDistances(fit.placeRaw()));
-  estimate.before = summarize(fit.pairDistances(TimingConfig()));
+std::string toString(TimingCause cause) {
+  switch (cause) {
+    case TimingCause::kNone:
+      return "none";
+    case TimingCause::kTooFewPairs:
+      return "too few overlapping pairs";
+    case TimingCause::kTooLittleTurning:
+      return "too little turning";
+    case TimingCause::kTurningTooUniform:
+      return "turning too uniform";
+    case TimingCause::kOdometryTooCoarse:
+      return "odometry too coarse";
+    case TimingCause::kNoClearMinimum:
+      return "no clear minimum";
+    case TimingCause::kWorseThanRaw:
+      return "worse than raw";
+  }
+  return "?";
+}
 
-  // The message's own period and the stamps'.
+TimingEstimate estimateTiming(TimingFit& fit, const TimingFitConfig& config) {
+  TimingEstimate estimate;
   estimate.message_period = fit.messagePeriod();
   const double nominal = fit.nominalPeriod();
+  estimate.period = estimate.message_period > 0.0 ? estimate.message_period : nominal;
+  estimate.time_offset = std::numeric_limits<double>::quiet_NaN();
+
+  // What the motion can show: pairs with a turning scan (the beam order and the period bend turning
+  // scans), and pairs whose scans turn at different rates (an offset shows only there).
+  std::ostringstream counts;
+  const auto count = [&] {
+    estimate.scans = fit.scanCount();
+    estimate.pairs = fit.pairs().size();
+    estimate.turning_scans = fit.turningScans();
+    estimate.odometry_interval = fit.odometryInterval();
+    estimate.fastest_turn = 0.0;
+    for (const ScanMotion& motion : fit.motions())
+      estimate.fastest_turn = std::max(estimate.fastest_turn, std::abs(motion.turn_rate));
+    estimate.turning_pairs = estimate.changing_pairs = 0;
+    for (const auto& [earlier, later] : fit.pairs()) {
+      const double a = fit.motions()[earlier].turn_rate, b = fit.motions()[later].turn_rate;
+      if (std::max(std::abs(a), std::abs(b)) >= config.turning_rate)
+        ++estimate.turning_pairs;
+      if (std::abs(a - b) >= config.turning_rate)
+        ++estimate.changing_pairs;
+    }
+    counts.str("");
+    counts << estimate.turning_scans << " scans turn at " << config.turning_rate
+           << " rad/s or faster (fastest " << formatSeconds(estimate.fastest_turn) << " rad/s), "
+           << estimate.turning_pairs << " overlapping pairs with a turning scan, " << estimate.changing_pairs
+           << " whose scans' turn rates differ by " << config.turning_rate << " rad/s or more";
+    estimate.raw = summarize(fit.pairDistances(fit.placeRaw()));
+    estimate.before = summarize(fit.pairDistances(TimingConfig()));
+  };
+  count();
+  const auto refuse = [&](TimingCause cause, const std::string& why) {
+    estimate.cause = cause;
+    estimate.why = why;
+    return estimate;
+  };
+  if (estimate.pairs < config.min_turning_pairs)
+    return refuse(TimingCause::kTooFewPairs,
+                  "too few overlapping pairs of scans to tell the timing: " + std::to_string(estimate.pairs) +
+                      " (at least " + std::to_string(config.min_turning_pairs) +
+                      "); drive in sight of the same walls, within 3 m and 10 s");
+  if (estimate.turning_scans < config.min_turning_scans ||
+      estimate.turning_pairs < config.min_turning_pairs) {
+    std::ostringstream why;
+    why << "too little turning to tell the timing: " << counts.str() << "; at least "
+        << config.min_turning_scans << " turning scans and " << config.min_turning_pairs
+        << " such pairs are needed (turn at 0.5-2 rad/s for a few seconds, starting and stopping, in sight "
+           "of the same walls)";
+    return refuse(TimingCause::kTooLittleTurning, why.str());
+  }
+
+  // Candidates: both beam orders under the message's period and, where it is 0 or disagrees with the
+  // stamps by more than 5 %, the stamps' period.
   std::vector<double> periods;
   if (estimate.message_period > 0.0)
     periods.push_back(estimate.message_period);
   if (estimate.message_period <= 0.0 || std::abs(estimate.message_period / nominal - 1.0) > 0.05)
     periods.push_back(nominal);
-
-  // Pairs that can tell: one of the two scans turns.
-  std::size_t turning_pairs = 0;
-  for (const auto& [earlier, later] : fit.pairs()) {
-    if (std::max(std::abs(fit.motions()[earlier].turn_rate), std::abs(fit.motions()[later].turn_rate)) >=
-        config.turning_rate)
-      ++turning_pairs;
-  }
-  estimate.turning_pairs = turning_pairs;
-  if (estimate.turning_scans < config.min_turning_scans || turning_pairs < config.min_turning_pairs) {
-    std::ostringstream why;
-    why << "too little turning to tell the timing: " << estimate.turning_scans << " scans turn at "
-        << config.turning_rate << " rad/s or faster (fastest " << formatSeconds(estimate.fastest_turn)
-        << " rad/s), " << turning_pairs << " overlapping pairs with a turning scan; at least "
-        << config.min_turning_scans << " turning scans and " << config.min_turning_pairs
-        << " such pairs are needed (turn at 0.5-2 rad/s for a few seconds, starting and stopping, "
-           "in sight of the same walls)";
-    estimate.why = why.str();
-    return estimate;
-  }
-
-  // Every beam order and candidate period: coarse offsets over +-1.25 periods, then fine round the best.
-  struct Candidate {
-    Curve coarse;
-    Curve fine;
-    double offset = 0.0;
-    double value = 0.0;
-    double period = 0.0;
-  };
   std::vector<Candidate> candidates;
-  for (double period : periods) {
-    for (BeamOrder order : {BeamOrder::kAsMessage, BeamOrder::kReversed}) {
-      TimingConfig timing;
-      timing.beam_order = order;
-      timing.scan_period = period;
-      timing.use_scan_period = true;
-      // +-1.25 periods and at least +-100 ms (fast sensors, long latencies), in at most 49 steps.
-      const double range = std::max(1.25 * period, config.min_range);
-      const double coarse_step = std::max(period / 24.0, range / 24.0);
-      Candidate candidate;
-      candidate.coarse = evaluate(fit, timing, grid(0.0, range, coarse_step), cap);
-      const double best = minimumOf(candidate.coarse.offsets, candidate.coarse.mean).first;
-      const double fine_step = std::min(config.resolution * 5.0, coarse_step / 4.0);
-      candidate.period = period;
-      candidate.fine = evaluate(fit, timing, grid(best, 1.5 * coarse_step, fine_step), cap);
-      std::tie(candidate.offset, candidate.value) = minimumOf(candidate.fine.offsets, candidate.fine.mean);
-      candidates.push_back(std::move(candidate));
+  std::size_t best = 0;
+  std::vector<double> ones;
+  const auto searchAll = [&] {
+    candidates.clear();
+    for (double period : periods) {
+      for (BeamOrder order : {BeamOrder::kAsMessage, BeamOrder::kReversed}) {
+        TimingConfig timing;
+        timing.beam_order = order;
+        timing.scan_period = period;
+        timing.use_scan_period = true;
+        candidates.push_back(search(fit, timing, period, fit.shifted(), config));
+      }
     }
-  }
-  const auto best =
-      std::min_element(candidates.begin(), candidates.end(),
-                       [](const Candidate& a, const Candidate& b) { return a.value < b.value; });
-  // The best of the other beam order, for its confidence.
-  const Candidate* rival = nullptr;
-  for (const Candidate& candidate : candidates) {
-    if (candidate.fine.timing.beam_order != best->fine.timing.beam_order &&
-        (!rival || candidate.value < rival->value))
-      rival = &candidate;
-  }
-
-  // Bootstrap over the scans: a resample draws scans with replacement; a pair counts as often as its
-  // later scan was drawn. Each resample's minimum is sought over the whole coarse range, then, when it
-  // falls in the fine window, on the fine grid: a flat or two-valleyed score shows as a wide spread.
-  const auto resampledMinimum = [](const Candidate& candidate, const std::vector<double>& weights) {
-    const std::vector<double> coarse = weightedMeans(candidate.coarse, weights);
-    const auto [at, value] = minimumOf(candidate.coarse.offsets, coarse);
-    if (at < candidate.fine.offsets.front() || at > candidate.fine.offsets.back())
-      return std::make_pair(at, value);
-    return minimumOf(candidate.fine.offsets, weightedMeans(candidate.fine, weights));
+    // A candidate that cannot place most scans (a sweep longer than the motion covers) is out.
+    std::size_t most_scored = 0;
+    for (const Candidate& candidate : candidates)
+      most_scored = std::max(most_scored, candidate.fine.scored_pairs);
+    candidates.erase(
+        std::remove_if(candidates.begin(), candidates.end(),
+                       [&](const Candidate& c) { return 2 * c.fine.scored_pairs < most_scored; }),
+        candidates.end());
+    if (most_scored == 0)
+      candidates.clear();
+    ones.assign(fit.pairs().size(), 1.0);
+    best = 0;
+    for (std::size_t c = 1; c < candidates.size(); ++c) {
+      if (compare(candidates[c], candidates[c].index, candidates[best], candidates[best].index, ones) < 0.0)
+        best = c;
+    }
   };
+  searchAll();
+  estimate.search_range = candidates.empty() ? 0.0 : candidates[best].range;
+  // Found an offset well away from the stamps? Then the scans and pairs are chosen anew as if the
+  // stamps were that much later, and searched again: the same scans and pairs whatever the stamps.
+  if (!candidates.empty() && !candidates[best].on_edge &&
+      std::abs(candidates[best].offset) > std::min(config.coarse_step, candidates[best].period / 2.0)) {
+    fit.shift(candidates[best].offset);
+    count();
+    searchAll();
+  }
+  if (candidates.empty())
+    return refuse(TimingCause::kTooFewPairs, "no pair of scans can be scored under any timing");
+  const Candidate& chosen = candidates[best];
+  // The best of the other beam order and of the other period, for their confidence.
+  const auto bestOther = [&](auto differs) -> const Candidate* {
+    const Candidate* other = nullptr;
+    for (const Candidate& candidate : candidates) {
+      if (differs(candidate) &&
+          (!other || compare(candidate, candidate.index, *other, other->index, ones) < 0.0))
+        other = &candidate;
+    }
+    return other;
+  };
+  const Candidate* order_rival =
+      bestOther([&](const Candidate& c) { return c.timing.beam_order != chosen.timing.beam_order; });
+  const Candidate* period_rival = bestOther([&](const Candidate& c) { return c.period != chosen.period; });
+
+  // Bootstrap over blocks of consecutive scans (a turn's scans share its motion and odometry errors):
+  // a resample draws blocks with replacement until it holds as many scans as the recording; a pair
+  // counts as often as its later scan was drawn. Each resample's minimum is sought over the whole
+  // coarse window, then, when it falls in the fine window, on the fine grid.
+  const auto resampledMinimum = [](const Candidate& candidate, const std::vector<double>& weights,
+                                   std::size_t& index) {
+    const std::vector<double> coarse = weightedMeans(candidate.coarse, weights);
+    const double at = minimumOf(candidate.coarse.offsets, coarse).first;
+    const std::vector<double> fine = weightedMeans(candidate.fine, weights);
+    const double found = minimumOf(candidate.fine.offsets, fine, &index).first;
+    return at < candidate.fine.offsets.front() || at > candidate.fine.offsets.back() ? at : found;
+  };
+  const std::size_t n = fit.scanCount();
+  const std::size_t block =
+      std::clamp<std::size_t>(static_cast<std::size_t>(std::lround(config.block_duration / nominal)), 1, n);
+  estimate.block_scans = block;
   std::mt19937 random(config.seed);
-  std::uniform_int_distribution<std::size_t> draw(0, fit.scanCount() - 1);
+  std::uniform_int_distribution<std::size_t> draw(0, n - block);
   std::vector<double> offsets;
-  std::size_t order_held = 0;
+  std::size_t order_held = 0, period_held = 0;
   const auto& pairs = fit.pairs();
   for (std::size_t r = 0; r < std::max<std::size_t>(2, config.resamples); ++r) {
-    std::vector<double> drawn(fit.scanCount(), 0.0);
-    for (std::size_t k = 0; k < fit.scanCount(); ++k)
-      drawn[draw(random)] += 1.0;
+    std::vector<double> drawn(n, 0.0);
+    for (std::size_t filled = 0; filled < n;) {
+      const std::size_t start = draw(random);
+      for (std::size_t k = start; k < start + block && filled < n; ++k, ++filled)
+        drawn[k] += 1.0;
+    }
     std::vector<double> weights(pairs.size());
     double total = 0.0;
     for (std::size_t p = 0; p < pairs.size(); ++p)
       total += weights[p] = drawn[pairs[p].second];
     if (total <= 0.0)
       continue;  // no pair drawn: nothing to say
-    const auto [offset, value] = resampledMinimum(*best, weights);
-    offsets.push_back(offset);
-    if (!rival || value < resampledMinimum(*rival, weights).second)
-      ++order_held;
+    std::size_t index = 0, rival_index = 0;
+    offsets.push_back(resampledMinimum(chosen, weights, index));
+    const auto holds = [&](const Candidate* rival) {
+      if (!rival)
+        return true;
+      (void)resampledMinimum(*rival, weights, rival_index);
+      return !(compare(chosen, index, *rival, rival_index, weights) > 0.0);
+    };
+    order_held += holds(order_rival);
+    period_held += holds(period_rival);
   }
-  if (offsets.size() < 2) {
-    estimate.why = "too few pairs to tell the timing";
-    return estimate;
-  }
-  estimate.offset_sigma = summarize(offsets).spread;
+  if (offsets.size() < 2)
+    return refuse(TimingCause::kTooFewPairs, "too few pairs to tell the timing");
+  // The spread of the resamples' minima, and the fine grid's own resolution.
+  const double fine_step =
+      chosen.fine.offsets.size() > 1 ? chosen.fine.offsets[1] - chosen.fine.offsets[0] : 0.0;
+  estimate.offset_sigma = std::hypot(summarize(offsets).spread, fine_step / std::sqrt(12.0));
   estimate.order_confidence = static_cast<double>(order_held) / offsets.size();
-  estimate.time_offset = best->offset;
-  estimate.period = best->period;
-  estimate.period_estimated = best->period != estimate.message_period;
+  estimate.period_confidence = static_cast<double>(period_held) / offsets.size();
+  estimate.on_edge = chosen.on_edge;
+  estimate.period = chosen.period;
+  estimate.period_estimated = chosen.period != estimate.message_period;
   estimate.period_sigma = estimate.period_estimated ? fit.nominalPeriodSigma() : 0.0;
+  for (std::size_t k = 0; k < chosen.coarse.offsets.size(); ++k)
+    estimate.coarse_curve.emplace_back(chosen.coarse.offsets[k], chosen.coarse.mean[k]);
+  for (std::size_t k = 0; k < chosen.fine.offsets.size(); ++k)
+    estimate.fine_curve.emplace_back(chosen.fine.offsets[k], chosen.fine.mean[k]);
 
-  if (estimate.offset_sigma > config.max_uncertainty_share * estimate.period ||
-      estimate.order_confidence < 0.9) {
+  if (estimate.order_confidence < config.min_confidence ||
+      estimate.period_confidence < config.min_confidence) {
     std::ostringstream why;
-    why << "the recording cannot tell the timing well enough: offset " << formatSeconds(best->offset * 1e3)
-        << " ms +- " << formatSeconds(estimate.offset_sigma * 1e3) << " ms, beam order held in "
-        << formatSeconds(estimate.order_confidence * 100.0) << " % of resamples; " << estimate.turning_scans
-        << " scans turn at " << config.turning_rate
-        << " rad/s or faster. Record more turning (0.5-2 rad/s, starting and stopping, in sight of the same "
-           "walls)";
-    estimate.why = why.str();
-    return estimate;
+    why << "the recording cannot tell the beam order" << (period_rival ? " and the period" : "")
+        << ": the order held in " << formatSeconds(estimate.order_confidence * 100.0) << " % of resamples";
+    if (period_rival)
+      why << ", the period in " << formatSeconds(estimate.period_confidence * 100.0) << " %";
+    why << " (at least " << formatSeconds(config.min_confidence * 100.0) << " % needed); " << counts.str()
+        << ". Record more turning (0.5-2 rad/s, starting and stopping, in sight of the same walls)";
+    return refuse(TimingCause::kTooLittleTurning, why.str());
   }
-  estimate.told = true;
 
-  // As parameters: snapped to "as the message says" or to "stamped at the end" when that close.
+  // The offset: told when its minimum lies inside the window, its uncertainty is small against the
+  // period, and scans that turn at different rates overlap (under one constant twist a constant offset
+  // moves every scan by the same rigid transform of the world, which no comparison of scans can see).
+  std::ostringstream offset_why;
+  TimingCause offset_cause = TimingCause::kNone;
+  const std::string seen = "the best offset " + formatSeconds(chosen.offset * 1e3) + " ms +- " +
+                           formatSeconds(estimate.offset_sigma * 1e3) + " ms";
+  if (estimate.changing_pairs < config.min_changing_pairs) {
+    offset_cause = TimingCause::kTurningTooUniform;
+    offset_why << "the motion was too uniform to see an offset: overlapping scans turn alike ("
+               << counts.str() << "; at least " << config.min_changing_pairs
+               << " are needed). Under a constant twist a constant offset moves every scan by the same rigid "
+                  "transform, which no comparison of scans can see; turn, starting and stopping, to see it";
+  } else if (chosen.on_edge) {
+    offset_cause = TimingCause::kNoClearMinimum;
+    offset_why << "no offset within +-" << formatSeconds(chosen.range * 1e3)
+               << " ms fits: the best lies on the search window's edge ("
+               << formatSeconds(chosen.offset * 1e3) << " ms), which is no estimate";
+  } else if (estimate.offset_sigma > config.max_uncertainty_share * estimate.period) {
+    const bool coarse_odometry = estimate.odometry_interval >= 0.5 * estimate.period;
+    offset_cause = coarse_odometry ? TimingCause::kOdometryTooCoarse : TimingCause::kNoClearMinimum;
+    offset_why << "the offset is too uncertain to write: " << seen << " (at most "
+               << formatSeconds(config.max_uncertainty_share * estimate.period * 1e3) << " ms, "
+               << formatSeconds(config.max_uncertainty_share * 100.0) << " % of the period)";
+    if (coarse_odometry)
+      offset_why << "; the odometry is too coarse: its samples lie "
+                 << formatSeconds(estimate.odometry_interval * 1e3)
+                 << " ms apart (median over the sweeps), against a " << formatSeconds(estimate.period * 1e3)
+                 << " ms sweep; record odometry at 20 Hz or more";
+    else
+      offset_why << "; record more turning, starting and stopping, in sight of the same walls";
+  }
+  estimate.offset_told = offset_cause == TimingCause::kNone;
+  estimate.time_offset = chosen.offset;
+
+  // As parameters: the offset snapped to "as the message says" or to "stamped at the end" when that
+  // close; where it is not told, the message's.
   TimingConfig& timing = estimate.timing;
-  timing.beam_order = best->fine.timing.beam_order;
+  timing.beam_order = chosen.timing.beam_order;
   if (estimate.period_estimated) {
     timing.scan_period = estimate.period;
     timing.use_scan_period = estimate.message_period > 0.0;
@@ -395,17 +641,34 @@ TimingEstimate estimateTiming(const TimingFit& fit, const TimingFitConfig& confi
       estimate.period * std::abs(static_cast<double>(first.angle_increment)) / kTwoPi *
       static_cast<double>(first.ranges.empty() ? 0 : first.ranges.size() - 1);
   const double tolerance = std::max(config.snap, 2.0 * estimate.offset_sigma);
-  if (std::abs(estimate.time_offset) <= tolerance) {
+  if (!estimate.offset_told || std::abs(chosen.offset) <= tolerance) {
     timing.time_offset = 0.0;
-  } else if (std::abs(estimate.time_offset + sweep) <= tolerance) {
+  } else if (std::abs(chosen.offset + sweep) <= tolerance) {
     timing.stamp_at = StampAt::kEnd;
     timing.time_offset = 0.0;
   } else {
-    timing.time_offset = std::round(estimate.time_offset * 1e5) / 1e5;  // 10 us
+    timing.time_offset = std::round(chosen.offset * 1e5) / 1e5;  // 10 us
   }
+  estimate.after = summarize(fit.pairDistances(timing));
+  // A timing under which corrected scans agree less than raw ones is no timing to write: the odometry
+  // or the mount is off, and no timing helps.
+  if (estimate.after.pairs > 0 && estimate.raw.pairs > 0 && estimate.after.mean > estimate.raw.mean) {
+    std::ostringstream why;
+    why << "corrected with the best timing found, overlapping scans agree less than raw ones ("
+        << formatSeconds(estimate.after.mean * 1e3) << " mm against "
+        << formatSeconds(estimate.raw.mean * 1e3) << " mm): the odometry"
+        << (estimate.odometry_interval >= 0.5 * estimate.period
+                ? " (samples " + formatSeconds(estimate.odometry_interval * 1e3) + " ms apart)"
+                : std::string())
+        << " or the laser's mount does not fit the scans; nothing to write";
+    estimate.offset_told = false;
+    return refuse(TimingCause::kWorseThanRaw, why.str());
+  }
+  estimate.told = true;
+  estimate.cause = offset_cause;
+  estimate.why = offset_why.str();
   estimate.changed = timing.beam_order != BeamOrder::kAsMessage || timing.stamp_at != StampAt::kStart ||
                      timing.time_offset != 0.0 || estimate.period_estimated;
-  estimate.after = summarize(fit.pairDistances(timing));
   return estimate;
 }
 

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <random>
 
 #include "lidar_deskew/eval/evaluate.h"
 #include "lidar_deskew/sim/sim_bag.h"
@@ -57,16 +58,66 @@ std::vector<CalibrationCase> calibrationCases() {
       {lds, "as the LDS-01 driver: reversed, stamped at the end, time_increment x 0.054",
        fault(atEnd(lds), true, 0.054), 23},
       {utm270_high, "time_increment 0 (scan_time right), stamp 15 ms early", fault(-0.015, false, 0.0), 24},
+      // Latencies beyond the first window of old (1.25 sweeps): 1.65 sweeps at 5 Hz, 3.4 at 40 Hz,
+      // stamped at the end plus 150 ms at 8 Hz (2.2 sweeps).
+      {lds, "stamp 330 ms late (1.65 sweeps)", fault(0.330), 25},
+      {utm_high, "stamp 85 ms late (3.4 sweeps)", fault(0.085), 26},
+      {ild, "stamped at the end + 150 ms late", fault(atEnd(ild) + 0.150), 27},
+      // Steady drives: one constant twist. The offset cannot show; the order and the period do.
+      {"LDS-01/normal/circle", "reversed", fault(0.0, true), 28},
+      {"ILD26TRI/normal/spin", "time_increment and scan_time 0", fault(0.0, false, 0.0, true), 29},
+      {"LDS-01/normal/spin", "time_increment x 0.5, reversed", fault(0.0, true, 0.5), 30},
+      {"UTM-30LX/normal/circle", "time_increment x 1000 (ms as s)", fault(0.0, false, 1000.0), 31},
+      {"ILD26TRI/normal/circle", "reversed, stamp 100 ms late (not observable)", fault(0.100, true), 32},
   };
 }
 
-CalibrationRun runCalibrationCase(const CalibrationCase& recording, const std::string& directory) {
+bool offsetObservable(const CalibrationCase& recording) {
+  return sim::findScenario(recording.scenario).motion == "turns";
+}
+
+std::vector<CalibrationCase> coverageCases(std::size_t count, unsigned seed) {
+  const char* sensors[] = {"LDS-01", "ILD26TRI", "UTM-30LX", "UTM-30LX-270"};
+  const double tf_rates[] = {50.0, 20.0, 10.0};
+  const double odom_noises[] = {0.0, 0.02, 0.05};
+  std::mt19937 random(seed);
+  std::vector<CalibrationCase> cases;
+  for (std::size_t k = 0; k < count; ++k) {
+    CalibrationCase recording;
+    recording.scenario =
+        std::string(sensors[random() % 4]) + (random() % 2 ? "/high/turns" : "/normal/turns");
+    const double period = 1.0 / sim::findScenario(recording.scenario).lidar.rate;
+    const double stamp_error =
+        std::round(std::uniform_real_distribution<double>(-0.5, 3.0)(random) * period * 1e4) / 1e4;
+    const bool reversed = random() % 2;
+    recording.timing_fault = fault(stamp_error, reversed);
+    recording.tf_rate = tf_rates[random() % 3];
+    recording.odom_noise = odom_noises[random() % 3];
+    recording.seed = 1000 + static_cast<unsigned>(k);
+    recording.odom_seed = 2000 + static_cast<unsigned>(k);
+    char name[160];
+    std::snprintf(name, sizeof name, "stamp %.1f ms late%s, odometry %.0f Hz%s", stamp_error * 1e3,
+                  reversed ? ", reversed" : "", recording.tf_rate,
+                  recording.odom_noise > 0.0
+                      ? (", noise " + std::to_string(recording.odom_noise).substr(0, 4)).c_str()
+                      : "");
+    recording.fault = name;
+    cases.push_back(recording);
+  }
+  return cases;
+}
+
+CalibrationRun runCalibrationCase(const CalibrationCase& recording, const std::string& directory,
+                                  bool score_it) {
   const std::string stem = directory + "/calibration_" + std::to_string(recording.seed);
   const std::string bag_path = stem + ".bag", truth_path = stem + ".truth";
   sim::SimBagOptions options;
   options.noise = true;
   options.seed = recording.seed;
   options.timing_fault = recording.timing_fault;
+  options.tf_rate = recording.tf_rate;
+  options.odom_noise = recording.odom_noise;
+  options.odom_noise_seed = recording.odom_seed;
   const sim::Scenario scenario = sim::findScenario(recording.scenario);
   sim::writeSimulationBag(scenario, options, bag_path, truth_path);
   const sim::Truth truth = sim::readTruth(truth_path);
@@ -82,6 +133,11 @@ CalibrationRun runCalibrationCase(const CalibrationCase& recording, const std::s
   const core::TimingEstimate& estimate = run.calibration.estimate;
   run.offset_error = estimate.time_offset - run.true_offset;
   run.order_right = (estimate.timing.beam_order == core::BeamOrder::kReversed) == run.true_reversed;
+  if (!score_it) {
+    std::remove(bag_path.c_str());
+    std::remove(truth_path.c_str());
+    return run;
+  }
 
   EvaluateOptions score;
   const auto cloudRms = [&](const core::TimingConfig& timing, Evaluation* kept) {
@@ -128,9 +184,10 @@ std::string calibrationTableRow(const CalibrationRun& run) {
   const core::TimingConfig& timing = estimate.timing;
   std::string written;
   if (!estimate.told) {
-    written = "nothing (too little turning)";
+    written = "nothing (" + core::toString(estimate.cause) + ")";
   } else if (!estimate.changed) {
-    written = "unchanged";
+    written = estimate.offset_told ? "unchanged"
+                                   : "unchanged; offset not told (" + core::toString(estimate.cause) + ")";
   } else {
     char text[160];
     std::snprintf(text, sizeof text, "%s%s%s", timing.stamp_at == core::StampAt::kEnd ? "stamp_at end " : "",
@@ -141,6 +198,8 @@ std::string calibrationTableRow(const CalibrationRun& run) {
       std::snprintf(text, sizeof text, "time_offset %.2f ms", timing.time_offset * 1e3);
       written += text;
     }
+    if (!estimate.offset_told)
+      written += "; offset not told (" + core::toString(estimate.cause) + ")";
   }
   char period[48];
   std::snprintf(period, sizeof period, "%.3f%s", estimate.period * 1e3,
@@ -150,14 +209,22 @@ std::string calibrationTableRow(const CalibrationRun& run) {
     std::snprintf(message, sizeof message, "refused");
   else
     std::snprintf(message, sizeof message, "%.1f", run.message_timing_mm);
+  char offset[64], error[32];
+  if (estimate.offset_told) {
+    std::snprintf(offset, sizeof offset, "%.2f ± %.2f", estimate.time_offset * 1e3,
+                  estimate.offset_sigma * 1e3);
+    std::snprintf(error, sizeof error, "%+.2f", run.offset_error * 1e3);
+  } else {
+    std::snprintf(offset, sizeof offset, "not told");
+    std::snprintf(error, sizeof error, "-");
+  }
   char row[1024];
-  std::snprintf(
-      row, sizeof row,
-      "| %s | %s | %.2f | %.2f ± %.2f | %+.2f | %s (%.0f %%) | %s | %s | %s | %.2f | %.2f | %.2f | %.3f |\n",
-      run.recording.scenario.c_str(), run.recording.fault.c_str(), run.true_offset * 1e3,
-      estimate.time_offset * 1e3, estimate.offset_sigma * 1e3, run.offset_error * 1e3,
-      run.order_right ? "right" : "WRONG", 100.0 * estimate.order_confidence, period, written.c_str(),
-      message, run.corrected_mm, run.true_timing_mm, run.floor_mm, run.corrected_mm / run.floor_mm);
+  std::snprintf(row, sizeof row,
+                "| %s | %s | %.2f | %s | %s | %s (%.0f %%) | %s | %s | %s | %.2f | %.2f | %.2f | %.3f |\n",
+                run.recording.scenario.c_str(), run.recording.fault.c_str(), run.true_offset * 1e3, offset,
+                error, run.order_right ? "right" : "WRONG", 100.0 * estimate.order_confidence, period,
+                written.c_str(), message, run.corrected_mm, run.true_timing_mm, run.floor_mm,
+                run.corrected_mm / run.floor_mm);
   return row;
 }
 

@@ -95,6 +95,21 @@ Scenario makeTurnsScenario(const LidarModel& lidar, const std::string& speed) {
   return scenario;
 }
 
+/// A steady drive for timing calibration: one constant twist for 12 s, turning in place ("spin") or
+/// on one circle ("circle"). A constant offset moves every scan of it by the same rigid transform:
+/// the beam order and the period show, the offset does not.
+Scenario makeSteadyScenario(const LidarModel& lidar, const std::string& motion) {
+  Scenario scenario = makeTurnsScenario(lidar, "normal");
+  scenario.motion = motion;
+  scenario.name = lidar.name + "/normal/" + motion;
+  scenario.duration = 12.0;
+  const bool spin = motion == "spin";
+  const double v = spin ? 0.0 : 0.5, w = spin ? 1.5 : 1.0;  // a circle of 0.5 m radius
+  scenario.pieces = {{scenario.duration, v, 0.0, w}};
+  scenario.start = lidar.range_max < 10.0f ? Pose2{0.0, spin ? 0.0 : -v / w, 0.0} : Pose2{-10.0, 0.5, 0.0};
+  return scenario;
+}
+
 }  // namespace
 
 std::vector<Scenario> paperScenarios() {
@@ -137,6 +152,10 @@ std::vector<Scenario> calibrationScenarios() {
        {LidarModel::ild26tri(), LidarModel::utm30lx360(), LidarModel::utm30lx270(), LidarModel::lds01()}) {
     for (const std::string speed : {"normal", "high"})
       scenarios.push_back(makeTurnsScenario(lidar, speed));
+  }
+  for (const LidarModel& lidar : {LidarModel::ild26tri(), LidarModel::utm30lx360(), LidarModel::lds01()}) {
+    for (const std::string motion : {"spin", "circle"})
+      scenarios.push_back(makeSteadyScenario(lidar, motion));
   }
   return scenarios;
 }

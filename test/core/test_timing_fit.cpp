@@ -118,7 +118,7 @@ Recording record(const Drive& drive, double stamp_error, bool reversed, double t
 
 TimingEstimate estimate(const Recording& recording) {
   const TimingFitConfig config;
-  const TimingFit fit(recording.scans, recording.mount, recording.motion, 0.0, config);
+  TimingFit fit(recording.scans, recording.mount, recording.motion, 0.0, config);
   return estimateTiming(fit, config);
 }
 
@@ -184,8 +184,35 @@ TEST(TimingFit, TooLittleTurningSaysSoAndHowMuchIsNeeded) {
   straight.trajectory = sim::PiecewiseTrajectory(sim::Pose2{-6.0, 0.0, 0.0}, {{10.0, 0.8, 0.0, 0.0}});
   const TimingEstimate found = estimate(record(straight, 0.03, false, 1.0));
   EXPECT_FALSE(found.told);
+  EXPECT_EQ(found.cause, TimingCause::kTooLittleTurning);
   EXPECT_NE(found.why.find("too little turning"), std::string::npos) << found.why;
   EXPECT_NE(found.why.find("at least 10 turning scans"), std::string::npos) << found.why;
+}
+
+// A latency beyond the first window: the window doubles until the minimum lies inside it. Where it may
+// not grow far enough, the best offset lies on the edge: no estimate, said so, the message's offset kept.
+TEST(TimingFit, WidensTheWindowOrSaysTheMinimumIsOnItsEdge) {
+  const Drive drive;
+  const Recording recording = record(drive, 0.3, false, 1.0);
+  TimingFitConfig config;
+  config.search_range = 0.1;
+  config.search_periods = 0.0;
+  config.max_search_range = 0.8;
+  TimingFit widening(recording.scans, recording.mount, recording.motion, 0.0, config);
+  const TimingEstimate found = estimateTiming(widening, config);
+  ASSERT_TRUE(found.offset_told) << found.why;
+  EXPECT_NEAR(found.time_offset, -0.3, 0.0005);
+  EXPECT_NEAR(found.search_range, 0.4, 1e-9);  // 0.1 -> 0.2 -> 0.4
+  EXPECT_FALSE(found.on_edge);
+
+  config.max_search_range = 0.2;
+  TimingFit narrow(recording.scans, recording.mount, recording.motion, 0.0, config);
+  const TimingEstimate edge = estimateTiming(narrow, config);
+  EXPECT_TRUE(edge.on_edge);
+  EXPECT_FALSE(edge.offset_told);
+  EXPECT_EQ(edge.cause, TimingCause::kNoClearMinimum);
+  EXPECT_NE(edge.why.find("edge"), std::string::npos) << edge.why;
+  EXPECT_EQ(edge.timing.time_offset, 0.0);
 }
 
 /// The live check fed as the node feeds it: each scan once tf covers its last beam under the

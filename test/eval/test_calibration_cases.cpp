@@ -1,8 +1,9 @@
 // deskew_calibrate against simulated recordings with known timing faults (eval::calibrationCases, the
-// table of docs/RESULTS_CALIBRATION.md; scripts/calibration_experiments.sh runs all 24): every fault
-// kind on the cheaper sensors (LDS-01, ILD26TRI), range noise on. Targets (issue 4/5): the offset within
-// 0.5 ms of the truth, the beam order right, the cloud corrected with the estimate within 5 % of the
-// noise floor; a fault-free recording left unchanged.
+// table of docs/RESULTS_CALIBRATION.md; scripts/calibration_experiments.sh runs all 32): every fault
+// kind on the cheaper sensors (LDS-01, ILD26TRI), range noise on. Targets: the offset within 0.5 ms of
+// the truth and within 2 sigma, the beam order right, the cloud corrected with the estimate within 5 %
+// of the noise floor; a fault-free recording left unchanged; on a steady drive the offset said to be
+// unobservable, the order and the period still told.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -21,10 +22,31 @@ TEST_P(CalibrationCases, EstimateMeetsTheTargets) {
   std::printf("%s", calibrationTableRow(run).c_str());
   const core::TimingEstimate& estimate = run.calibration.estimate;
   ASSERT_TRUE(estimate.told) << estimate.why;
-  EXPECT_LE(std::abs(run.offset_error), 0.0005);
-  EXPECT_LE(estimate.offset_sigma, 0.0005);
   EXPECT_TRUE(run.order_right);
   EXPECT_GE(estimate.order_confidence, 0.95);
+  // A period was estimated exactly when the message's was missing or wrong.
+  const bool period_wrong =
+      recording.timing_fault.time_increment_factor != 1.0 &&
+      (recording.timing_fault.time_increment_factor != 0.0 || recording.timing_fault.zero_scan_time);
+  EXPECT_EQ(estimate.period_estimated, period_wrong);
+  if (period_wrong) {
+    EXPECT_NEAR(estimate.period, run.calibration.stamp_period, 1e-9);
+  }
+  if (!offsetObservable(recording)) {
+    // One constant twist: the offset cannot show, and the estimate says so instead of guessing; the
+    // order and the period are written, the message's offset kept.
+    EXPECT_FALSE(estimate.offset_told);
+    EXPECT_EQ(estimate.cause, core::TimingCause::kTurningTooUniform);
+    EXPECT_NE(estimate.why.find("too uniform"), std::string::npos) << estimate.why;
+    EXPECT_EQ(estimate.timing.time_offset, 0.0);
+    EXPECT_EQ(estimate.timing.stamp_at, core::StampAt::kStart);
+    EXPECT_LE(run.corrected_mm, 1.05 * run.floor_mm);  // no offset fault: the written timing is the truth
+    return;
+  }
+  ASSERT_TRUE(estimate.offset_told) << estimate.why;
+  EXPECT_LE(std::abs(run.offset_error), 0.0005);
+  EXPECT_LE(estimate.offset_sigma, 0.0005);
+  EXPECT_LE(std::abs(run.offset_error), 2.0 * estimate.offset_sigma);
   EXPECT_LE(run.corrected_mm, 1.05 * run.floor_mm);
   // Calibrated is as good as the true timing (within a tenth of a millimetre).
   EXPECT_LE(run.corrected_mm, run.true_timing_mm + 0.1);
@@ -38,20 +60,14 @@ TEST_P(CalibrationCases, EstimateMeetsTheTargets) {
     EXPECT_EQ(estimate.timing.stamp_at, core::StampAt::kStart);
     EXPECT_FALSE(estimate.period_estimated);
   }
-  // A period was estimated exactly when the message's was missing or wrong.
-  const bool period_wrong =
-      recording.timing_fault.time_increment_factor != 1.0 &&
-      (recording.timing_fault.time_increment_factor != 0.0 || recording.timing_fault.zero_scan_time);
-  EXPECT_EQ(estimate.period_estimated, period_wrong);
-  if (period_wrong) {
-    EXPECT_NEAR(estimate.period, run.calibration.stamp_period, 1e-9);
-  }
 }
 
 // none (ILD26TRI), stamped at the end (LDS-01), 25 ms early (ILD26TRI), reversed (LDS-01), no period
 // (ILD26TRI high), the LDS-01 driver's three faults at once (reversed, at the end, time_increment x
-// 0.054). scripts/calibration_experiments.sh runs all 24.
-INSTANTIATE_TEST_SUITE_P(CheapSensors, CalibrationCases, testing::Values(0, 2, 6, 11, 16, 22));
+// 0.054); a latency of 1.65 sweeps (LDS-01, 330 ms: beyond the old window of 1.25 sweeps); a steady
+// spin with reversed beams and time_increment x 0.5 (LDS-01). scripts/calibration_experiments.sh runs
+// all 32.
+INSTANTIATE_TEST_SUITE_P(CheapSensors, CalibrationCases, testing::Values(0, 2, 6, 11, 16, 22, 24, 29));
 
 }  // namespace
 }  // namespace lidar_deskew::eval

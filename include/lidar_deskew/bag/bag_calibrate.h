@@ -36,6 +36,9 @@ Calibration calibrateBag(const CalibrateOptions& options);
 /// saying what was measured. Throws std::runtime_error when it cannot be written.
 void writeTimingParams(const Calibration& calibration, const std::string& bag, const std::string& path);
 
+/// The chosen beam order's and period's score against the offset, as CSV (search,offset_s,score_m).
+void writeCurve(const Calibration& calibration, const std::string& path);
+
 /// The estimate for the user, several lines.
 std::string describe(const Calibration& calibration);
 

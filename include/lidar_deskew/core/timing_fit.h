@@ -20,24 +20,45 @@ namespace lidar_deskew::core {
 
 struct TimingFitConfig {
   ConsistencyConfig consistency{0.5, 0.1, 0.5, 120};  ///< 120 points of a scan per pair: enough, 3x faster
+  /// The coarse search's measure: the cap at the overlap radius widens the score's valley (a timing
+  /// error of d moves points by turn rate x range x d; beyond the cap they stop counting more), fewer
+  /// points per pair, and tf's straight line between its samples instead of the twist fit.
+  ConsistencyConfig coarse_consistency{0.5, 0.5, 0.5, 60};
   PairSelection pairs;
   /// [rad/s] a scan turns when its base turns at least this fast over the sweep
   double turning_rate = 0.3;
-  /// scans that must turn for the timing to be told at all
+  /// scans that must turn for the beam order and the period to be told
   std::size_t min_turning_scans = 10;
   /// overlapping pairs with a turning scan, likewise
   std::size_t min_turning_pairs = 20;
+  /// overlapping pairs whose two scans' turn rates differ by at least turning_rate: the offset needs
+  /// them (under one constant twist an offset moves every scan by the same rigid transform)
+  std::size_t min_changing_pairs = 20;
   /// [s] the offset estimate's resolution: the fine search's step is at most 5 x this (a parabola
   /// through the best three refines it)
   double resolution = 0.0001;
-  /// [s] the offset is searched over +-max(1.25 periods, this)
-  double min_range = 0.1;
+  /// [s] the offset is searched first over +-max(search_range, search_periods x the period) ...
+  double search_range = 1.0;
+  double search_periods = 3.0;
+  /// [s] ... and that window doubled while the best offset lies on its edge, up to +-this; a minimum
+  /// still on the edge is no estimate
+  double max_search_range = 4.0;
+  /// [s] the coarse search's step, at most; and at most half the period
+  double coarse_step = 0.01;
+  /// pairs the coarse search scores at most, spread evenly over the recording (it only has to find
+  /// the valley; the fine search scores every pair)
+  std::size_t coarse_pairs = 500;
   /// [s] an estimate this close to "as the message says" (or to "stamped at the end") is snapped to it
   double snap = 0.0005;
   /// largest one-standard-deviation uncertainty of the offset, as a share of the sweep period, for an
-  /// estimate to be trusted (otherwise: too little turning)
+  /// estimate to be trusted
   double max_uncertainty_share = 0.1;
+  /// share of resamples that must prefer the chosen beam order (and period) for it to be told
+  double min_confidence = 0.9;
   std::size_t resamples = 200;  ///< bootstrap resamples for the uncertainties
+  /// [s] the bootstrap draws blocks of consecutive scans this long (scans of one turn are not
+  /// independent: their errors come from the same motion and odometry)
+  double block_duration = 3.0;
   unsigned seed = 1;
 };
 
@@ -52,11 +73,20 @@ struct ScanMotion {
 /// scans in which the base moves, so that every timing is scored on the same pairs.
 class TimingFit {
  public:
-  /// Keeps the scans that `motion` covers a sweep period either side of (they may be shifted that
-  /// far). `nominal_period` [s] one revolution; 0 = from the stamps (the mean interval between
-  /// consecutive scans, of those within 20 % of the median). Throws InvalidInput when no scan is left.
+  /// Keeps the scans that `motion` covers from the stamp to a period after it, and chooses the pairs
+  /// (see shift()). A timing that shifts a scan beyond what the motion covers leaves the pairs with that
+  /// scan unscored (see pairDistances).
+  /// `nominal_period` [s] one revolution; 0 = from the stamps (the mean interval between consecutive
+  /// scans, of those within 20 % of the median). Throws InvalidInput when no scan is left.
   TimingFit(std::vector<PlanarScan> scans, const mrpt::poses::CPose3D& mount, const MotionSource& motion,
             double nominal_period, const TimingFitConfig& config);
+
+  /// Chooses the scans, their motions and the pairs anew as if every stamp were `offset` [s] later (the
+  /// first beam at stamp + offset): what the constructor does with 0. The estimate calls it with its
+  /// coarse result, so that the same scans and pairs are used however far the stamps are off.
+  void shift(double offset);
+  /// [s] the offset of the last shift()
+  double shifted() const { return shift_; }
 
   std::size_t scanCount() const { return scans_.size(); }
   const std::vector<ScanMotion>& motions() const { return motions_; }
@@ -69,58 +99,104 @@ class TimingFit {
   /// [s] the median over the scans of messagePeriod()
   double messagePeriod() const { return message_period_; }
 
+  /// [s] The median over the scans of the longest interval between the motion's samples that overlaps
+  /// the sweep (0 for a continuous motion source): the odometry's resolution in time.
+  double odometryInterval() const { return odometry_interval_; }
+
   /// The scans corrected under `timing` and placed in the fixed frame (empty where the timing is not
-  /// valid for a scan or motion does not cover it).
-  std::vector<PlacedScan> place(const TimingConfig& timing) const;
+  /// valid for a scan or motion does not cover it). `placed`, when given, gets per scan whether it was
+  /// placed. `coarse`: tf's straight line between samples instead of the default interpolation.
+  /// `needed`, when given, says which scans to place (the others are left empty).
+  std::vector<PlacedScan> place(const TimingConfig& timing, std::vector<char>* placed = nullptr,
+                                bool coarse = false, const std::vector<char>* needed = nullptr) const;
   /// The raw scans (every beam at the stamp) placed in the fixed frame.
   std::vector<PlacedScan> placeRaw() const;
   /// pairDistance() of every pair under `timing` [m]; NaN where a scan could not be placed.
   std::vector<double> pairDistances(const TimingConfig& timing) const;
   std::vector<double> pairDistances(const std::vector<PlacedScan>& placed) const;
+  /// Per pair, the distance under `timing` [m] (NaN: no overlap) and in `scored` whether the motion
+  /// placed both scans (0: the pair cannot be scored under this timing). `coarse`: the coarse search's
+  /// measure (TimingFitConfig::coarse_consistency, tf's straight line between samples) on its pairs
+  /// only (TimingFitConfig::coarse_pairs; the others unscored).
+  std::vector<double> pairDistances(const TimingConfig& timing, std::vector<char>& scored, bool coarse) const;
   /// Mean of pairDistances (NaN pairs count as the cap).
   double score(const TimingConfig& timing) const;
 
  private:
   PlacedScan placeOne(std::size_t i, const TimingConfig& timing, ScanDeskewer& deskewer,
-                      DeskewedScan& corrected) const;
+                      DeskewedScan& corrected, bool& placed, std::size_t stride = 1) const;
 
-  std::vector<PlanarScan> scans_;
+  std::vector<PlanarScan> all_scans_;  // sorted by stamp
+  std::vector<PlanarScan> scans_;      // those the motion covers under the shift
+  double shift_ = 0.0;
   mrpt::poses::CPose3D mount_;
   const MotionSource& motion_;
   double nominal_period_;
   double nominal_sigma_ = 0.0;
   double message_period_ = 0.0;
+  double odometry_interval_ = 0.0;
   TimingFitConfig config_;
   std::vector<ScanMotion> motions_;
   std::vector<std::pair<std::size_t, std::size_t>> pairs_;
+  std::vector<char> coarse_pairs_;  // [pair] scored by the coarse search
+  std::vector<char> coarse_scans_;  // [scan] in a coarse pair
 };
 
-/// What deskew_calibrate reports.
+/// Why a part of the timing could not be told (TimingEstimate::cause).
+enum class TimingCause {
+  kNone,               ///< everything was told
+  kTooFewPairs,        ///< too few overlapping pairs of scans in which the base moves
+  kTooLittleTurning,   ///< too few scans turn (the beam order and the period need turning scans)
+  kTurningTooUniform,  ///< scans turn, but overlapping scans turn alike: a constant twist hides an offset
+  kOdometryTooCoarse,  ///< the odometry's samples lie farther apart than a sweep: the offset is blurred
+  kNoClearMinimum,     ///< the score has no clear minimum: the estimate is too uncertain or on the edge
+  kWorseThanRaw,       ///< corrected with the best timing, scans agree less than raw ones
+};
+/// A short name of the cause, e.g. "turning too uniform".
+std::string toString(TimingCause cause);
+
+/// What deskew_calibrate reports. Three outcomes: everything told (`told` and `offset_told`); the
+/// beam order and the period told but not the offset (`told`, not `offset_told`: the timing keeps the
+/// message's offset, `why` says why the offset is not seen); nothing told (not `told`, `why`).
 struct TimingEstimate {
-  bool told = false;  ///< enough turning to tell; otherwise `why` says what is missing
-  std::string why;
-  TimingConfig timing;            ///< the estimate, as parameters (stamp_at start unless snapped to end)
-  double time_offset = 0.0;       ///< [s] first beam - stamp as estimated, before snapping
-  double offset_sigma = 0.0;      ///< [s] one standard deviation (bootstrap over scans)
-  double order_confidence = 0.0;  ///< share of resamples that prefer the estimated beam order
-  double period = 0.0;            ///< [s] the revolution period used
-  double period_sigma = 0.0;      ///< [s] when estimated; 0 when the message's was kept
-  bool period_estimated = false;  ///< the message's period was 0 or disagreed with the data
-  double message_period = 0.0;    ///< [s] the message's own (time_increment, else scan_time); 0 = none
-  double sweep = 0.0;             ///< [s] first to last beam under `period` (when told)
-  bool changed = false;           ///< differs from the message's own timing
+  bool told = false;         ///< the beam order and the period are told: `timing` may be written
+  bool offset_told = false;  ///< the offset is told too; otherwise `timing` keeps the message's
+  TimingCause cause = TimingCause::kNone;
+  std::string why;            ///< what could not be told and why, in words (empty when everything was)
+  TimingConfig timing;        ///< the estimate, as parameters (stamp_at start unless snapped to end)
+  double time_offset = 0.0;   ///< [s] first beam - stamp, the best found, before snapping (NaN: no search)
+  double offset_sigma = 0.0;  ///< [s] one standard deviation (block bootstrap over scans)
+  double search_range = 0.0;  ///< [s] the offset was searched over +-this round the stamp
+  bool on_edge = false;       ///< the best offset lay on the search window's edge (no estimate)
+  double order_confidence = 0.0;   ///< share of resamples that prefer the estimated beam order
+  double period_confidence = 1.0;  ///< ... the chosen period, where there were two candidates
+  double period = 0.0;             ///< [s] the revolution period used
+  double period_sigma = 0.0;       ///< [s] when estimated; 0 when the message's was kept
+  bool period_estimated = false;   ///< the message's period was 0 or disagreed with the data
+  double message_period = 0.0;     ///< [s] the message's own (time_increment, else scan_time); 0 = none
+  double sweep = 0.0;              ///< [s] first to last beam under `period` (when told)
+  bool changed = false;            ///< differs from the message's own timing
   std::size_t scans = 0, pairs = 0, turning_scans = 0, turning_pairs = 0;
-  double fastest_turn = 0.0;  ///< [rad/s]
-  ConsistencySummary raw;     ///< every beam at the stamp
-  ConsistencySummary before;  ///< corrected with the message's timing (as the node does by default)
-  ConsistencySummary after;   ///< corrected with the estimate
+  std::size_t changing_pairs = 0;  ///< pairs whose scans' turn rates differ by turning_rate or more
+  std::size_t block_scans = 0;     ///< scans per bootstrap block
+  double fastest_turn = 0.0;       ///< [rad/s]
+  double odometry_interval = 0.0;  ///< [s] TimingFit::odometryInterval()
+  ConsistencySummary raw;          ///< every beam at the stamp
+  ConsistencySummary before;       ///< corrected with the message's timing (as the node does by default)
+  ConsistencySummary after;        ///< corrected with the estimate (when told)
+  /// The chosen beam order's and period's score [m] against the offset [s]: the coarse search's (its
+  /// measure) and the fine one's.
+  std::vector<std::pair<double, double>> coarse_curve, fine_curve;
 };
 
 /// Estimates time_offset, beam_order and, where the message's is 0 or disagrees with the data, the
-/// period, from `fit`: a coarse search of the offset over +-max(1.25 periods, min_range), a fine one
-/// round the best, per beam order and candidate period (the message's and `fit`'s nominal one);
-/// uncertainties by bootstrap over scans. See docs/CALIBRATION.md.
-TimingEstimate estimateTiming(const TimingFit& fit, const TimingFitConfig& config);
+/// period, from `fit`: per beam order and candidate period (the message's and `fit`'s nominal one) a
+/// coarse search of the offset over +-max(search_range, search_periods periods), widened while the best
+/// lies on the edge, and a fine one round the best; uncertainties by a bootstrap over blocks of
+/// consecutive scans. When the coarse search finds the offset, `fit` is shift()ed to it and searched
+/// again (the scans and pairs then do not depend on how far the stamps were off). See
+/// docs/CALIBRATION.md.
+TimingEstimate estimateTiming(TimingFit& fit, const TimingFitConfig& config);
 
 /// The live node's check that its timing fits (docs/CALIBRATION.md): each scan it is given is corrected
 /// under the configured timing and a few alternatives (stamp_at flipped, beam_order flipped, both, the

@@ -16,21 +16,33 @@ struct CalibrationCase {
   std::string scenario;  ///< e.g. "LDS-01/normal/turns"
   std::string fault;     ///< as in the table, e.g. "stamped at the end, reversed"
   sim::TimingFault timing_fault;
-  unsigned seed = 1;  ///< of the range noise (always on)
+  unsigned seed = 1;        ///< of the range noise (always on)
+  double tf_rate = 50.0;    ///< [Hz] of the odometry on /tf
+  double odom_noise = 0.0;  ///< sim::SimBagOptions::odom_noise (0: perfect odometry)
+  unsigned odom_seed = 1;   ///< of the odometry noise
 };
 
-/// The 24 recordings of docs/RESULTS_CALIBRATION.md: every fault the issue names (stamp at the end;
+/// The recordings of docs/RESULTS_CALIBRATION.md: every fault the issue names (stamp at the end;
 /// offsets of +-10-60 ms; reversed order; both; time_increment and scan_time 0; time_increment off by a
 /// factor), on LDS-01, ILD26TRI, UTM-30LX and UTM-30LX-270 driving turns at normal and high speed, and
-/// two without a fault.
+/// two without a fault (the first 24); latencies of 1.3 to 3.4 sweeps (3); and steady drives (one
+/// constant twist), where the offset cannot show but the beam order and the period do (5).
 std::vector<CalibrationCase> calibrationCases();
+
+/// Whether a case's offset can show: its scans turn at different rates (not a steady drive).
+bool offsetObservable(const CalibrationCase& recording);
+
+/// `count` recordings for the coverage of the offset's uncertainty: drawn from `seed` over the turns
+/// drives of every sensor at both speeds, offsets from -3 sweeps to +0.5 sweep, either beam order,
+/// odometry at 50, 20 or 10 Hz, perfect or noisy (0.02, 0.05 per step), the range noise's seed.
+std::vector<CalibrationCase> coverageCases(std::size_t count, unsigned seed);
 
 struct CalibrationRun {
   CalibrationCase recording;
   bag::Calibration calibration;
-  double true_offset = 0.0;       ///< [s] first beam - stamp, the truth
+  double true_offset = 0.0;  ///< [s] first beam - stamp, the truth
   bool true_reversed = false;
-  double offset_error = 0.0;      ///< [s] estimate - truth
+  double offset_error = 0.0;  ///< [s] estimate - truth
   bool order_right = false;
   double floor_mm = 0.0;          ///< what range noise alone gives (the noise floor) [mm RMS]
   double corrected_mm = 0.0;      ///< our cloud with the estimated timing [mm RMS to the true walls]
@@ -40,9 +52,10 @@ struct CalibrationRun {
   double raw_mm = 0.0;
 };
 
-/// Simulates the case into `directory` (bag and truth), calibrates it and scores the corrections.
-/// Throws std::runtime_error on failure.
-CalibrationRun runCalibrationCase(const CalibrationCase& recording, const std::string& directory);
+/// Simulates the case into `directory` (bag and truth), calibrates it and, with `score`, scores the
+/// corrections against the truth. Throws std::runtime_error on failure.
+CalibrationRun runCalibrationCase(const CalibrationCase& recording, const std::string& directory,
+                                  bool score = true);
 
 /// One markdown table row of a run (see calibrationTableHeader()).
 std::string calibrationTableRow(const CalibrationRun& run);

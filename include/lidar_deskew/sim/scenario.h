@@ -43,7 +43,9 @@ std::vector<Scenario> paperScenarios();
 /// 2 rad/s; "high": up to 2 m/s and 5 rad/s. For ILD26TRI, UTM-30LX, UTM-30LX-270 (in the hall,
 /// mount as in the paper's speeds) and LDS-01 (in World::smallRoom(), its 3.5 m reach; laser 32 mm
 /// behind the base as on a TurtleBot3 Burger). "<sensor>/normal/turns", "<sensor>/high/turns":
-/// 8 scenarios, not part of paperScenarios() (docs/RESULTS.md).
+/// 8 scenarios, not part of paperScenarios() (docs/RESULTS.md). Then 6 steady drives, one constant
+/// twist for 12 s, in which an offset cannot show: "<sensor>/normal/spin" (1.5 rad/s in place) and
+/// "<sensor>/normal/circle" (0.5 m/s, 1 rad/s) for ILD26TRI, UTM-30LX and LDS-01.
 std::vector<Scenario> calibrationScenarios();
 /// Every planar scenario: paperScenarios() then calibrationScenarios().
 std::vector<Scenario> planarScenarios();
