@@ -203,7 +203,8 @@ void writeReturns(const Coordinates& xyz, std::uint32_t time_offset, double time
 /// Scales each return's `range` field (of type T, any unit) by the ratio of its corrected position's
 /// distance from the sensor to its raw one: the range of the corrected point, in the driver's unit and
 /// from the driver's own origin (Ouster's beam origin lies a few cm from the sensor frame's: a still
-/// sensor's ranges stay as they were). Integers are rounded and kept within their type.
+/// sensor's ranges stay as they were). Integers are rounded; values kept within their type; a value that is
+/// not finite, or would not be, is left as it was.
 template <typename T>
 void scaleRanges(std::uint32_t range_offset, const std::vector<std::uint32_t>& byte_offsets,
                  const std::vector<Eigen::Vector3d>& raw, const std::vector<Eigen::Vector3d>& corrected,
@@ -212,14 +213,11 @@ void scaleRanges(std::uint32_t range_offset, const std::vector<std::uint32_t>& b
   for (std::size_t k = 0; k < corrected.size(); ++k) {
     std::uint8_t* const at = data + byte_offsets[k] + range_offset;
     const double scaled = static_cast<double>(load<T>(at)) * corrected[k].norm() / raw[k].norm();
-    if constexpr (std::is_integral_v<T>) {
-      const double clamped =
-          std::clamp(std::round(scaled), static_cast<double>(std::numeric_limits<T>::lowest()),
-                     static_cast<double>(std::numeric_limits<T>::max()));
-      store(at, static_cast<T>(clamped));
-    } else {
-      store(at, static_cast<T>(scaled));
-    }
+    if (!std::isfinite(scaled))
+      continue;  // (a non-finite value, or a non-finite correction: left as it was)
+    const double value = std::is_integral_v<T> ? std::round(scaled) : scaled;
+    store(at, static_cast<T>(std::clamp(value, static_cast<double>(std::numeric_limits<T>::lowest()),
+                                        static_cast<double>(std::numeric_limits<T>::max()))));
   }
 }
 
