@@ -163,7 +163,8 @@ for path in usr/lib/lidar_deskew/deskew_node usr/lib/lidar_deskew/deskew_bag usr
   "usr/lib/$multiarch/cmake/lidar_deskew/lidar_deskewConfig.cmake" usr/include/lidar_deskew/core/deskew.h \
   usr/share/lidar_deskew/package.xml usr/share/lidar_deskew/nodelets.xml usr/share/lidar_deskew/launch/deskew.launch \
   usr/share/lidar_deskew/launch/deskew_node.launch usr/share/lidar_deskew/launch/core_demo.launch \
-  usr/share/lidar_deskew/config/deskew.yaml usr/share/lidar_deskew/rviz/deskew.rviz \
+  usr/share/lidar_deskew/config/deskew.yaml usr/share/lidar_deskew/rviz/scan_deskew.rviz \
+  usr/share/lidar_deskew/rviz/cloud_deskew.rviz usr/share/lidar_deskew/launch/demo_cloud.launch \
   "usr/lib/$multiarch/liblidar_deskew_core.so.$soversion" usr/lib/python3/dist-packages/lidar_deskew/cfg/DeskewConfig.py \
   usr/share/doc/ros-lidar-deskew/copyright usr/share/doc/ros-lidar-deskew/changelog.Debian.gz \
   usr/share/doc/ros-lidar-deskew/changelog.gz usr/share/doc/ros-lidar-deskew/README.md \

@@ -28,8 +28,10 @@ for path in \
   share/lidar_deskew/launch/deskew.launch \
   share/lidar_deskew/launch/demo.launch \
   share/lidar_deskew/config/deskew.yaml \
-  share/lidar_deskew/rviz/deskew.rviz \
-  share/lidar_deskew/rviz/deskew_cloud.rviz \
+  share/lidar_deskew/rviz/scan_deskew.rviz \
+  share/lidar_deskew/rviz/scan_deskew_time.rviz \
+  share/lidar_deskew/rviz/cloud_deskew.rviz \
+  share/lidar_deskew/launch/demo_cloud.launch \
   share/lidar_deskew/data/neato_xv11/test_drive.bag \
   share/lidar_deskew/data/neato_xv11/NOTICE \
   lib/liblidar_deskew_nodelets.so \
