@@ -1,12 +1,18 @@
 #!/usr/bin/env bash
-# Builds the Debian package .build/ros-lidar-deskew_<version>_<arch>.deb (version from package.xml,
-# arch from dpkg) for this machine's Debian, laid out like Debian's own ROS packages: built with CMake
-# for prefix /usr in catkin's binary-package mode (no setup files), so libraries and the CMake config
-# go to /usr/lib/<multiarch>/, executables to /usr/lib/lidar_deskew/, launch, config, rviz and
-# nodelets.xml to /usr/share/lidar_deskew/, headers to /usr/include/lidar_deskew/.
+# Builds the Debian package .build/ros-lidar-deskew_<version>-1_<arch>.deb (upstream version from
+# package.xml, Debian revision 1, arch from dpkg) for this machine's Debian, laid out like Debian's own
+# ROS packages: built with CMake for prefix /usr in catkin's binary-package mode (no setup files), so
+# the versioned libraries (SONAME .so.MAJOR.MINOR) and the CMake config go to /usr/lib/<multiarch>/,
+# executables to /usr/lib/lidar_deskew/, launch, config, rviz and nodelets.xml to
+# /usr/share/lidar_deskew/, headers to /usr/include/lidar_deskew/, the dynamic_reconfigure module to
+# /usr/lib/python3/dist-packages/ (without bytecode), README.md and docs/ to /usr/share/doc/<package>/
+# with the Debian changelog (changelog.Debian.gz), the project's CHANGELOG.rst (changelog.gz) and
+# LICENSE (copyright). The control data has an ldconfig trigger and a shlibs file.
 # Depends: dpkg-shlibdeps of the libraries and executables, plus the ROS tools that rosrun, roslaunch
-# and the nodelet need. Recommends: the -dev packages that find_package(lidar_deskew) needs, found
-# with dpkg -S from the CMake configs of the installed config's dependencies.
+# and the nodelet need, and python3 with dynamic_reconfigure for the Python module. Recommends: the
+# -dev packages that find_package(lidar_deskew) needs, found with dpkg -S from the CMake configs of the
+# installed config's dependencies. What lintian still says, and why: README.md, "Install as a Debian
+# package" (test/check_deb.sh runs lintian).
 # The build folder .build/deb/build/lidar_deskew is kept: later runs rebuild only what changed, and repackage
 # only when the installed files, this script or package.xml changed.
 # Usage: scripts/build_deb.sh    (prints the path of the .deb)
@@ -17,7 +23,8 @@ repo=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd -P) # one path whether call
 script="$repo/scripts/build_deb.sh"
 jobs=${LIDAR_DESKEW_JOBS:-2}
 package=ros-lidar-deskew
-version=$(sed -n 's:.*<version>\(.*\)</version>.*:\1:p' "$repo/package.xml" | head -n 1)
+upstream_version=$(sed -n 's:.*<version>\(.*\)</version>.*:\1:p' "$repo/package.xml" | head -n 1)
+version=$upstream_version-1
 arch=$(dpkg --print-architecture)
 multiarch=$(dpkg-architecture -qDEB_HOST_MULTIARCH)
 work="$repo/.build/deb"
@@ -41,7 +48,28 @@ fi
 cmake --build "$build" -j"$jobs" >/dev/null
 rm -rf "$work/pkg"
 DESTDIR="$stage" cmake --install "$build" --strip >/dev/null
-install -D -m 644 "$repo/LICENSE" "$stage/usr/share/doc/$package/copyright"
+# Python's bytecode is the machine's own business (it is written on first import, or by py3compile)
+find "$stage" -name __pycache__ -type d -prune -exec rm -rf {} +
+maintainer=$(sed -n 's:.*<maintainer email="\(.*\)">\(.*\)</maintainer>.*:\2 <\1>:p' "$repo/package.xml" | head -n 1)
+
+# Documentation: README.md and docs/ as in the repo (the README's links stay valid), the licence, the
+# project's changelog and a Debian changelog for this packaging, dated by the last commit of
+# package.xml or CHANGELOG.rst (the same sources give the same package).
+doc="$stage/usr/share/doc/$package"
+install -D -m 644 "$repo/LICENSE" "$doc/copyright"
+install -m 644 "$repo/README.md" "$doc/README.md"
+(cd "$repo" && find docs -type f \( -name '*.md' -o -name '*.png' \) -exec install -D -m 644 {} "$doc/{}" \;)
+gzip -9n <"$repo/CHANGELOG.rst" >"$doc/changelog.gz"
+changelog_date=$(git -C "$repo" log -1 --format=%aD -- package.xml CHANGELOG.rst 2>/dev/null || true)
+[ -n "$changelog_date" ] || changelog_date=$(date -R -r "$repo/package.xml")
+cat <<CHANGELOG | gzip -9n >"$doc/changelog.Debian.gz"
+$package ($version) unstable; urgency=medium
+
+  * lidar_deskew $upstream_version, packaged by scripts/build_deb.sh. The changes
+    of the software are in changelog.gz (the project's CHANGELOG.rst).
+
+ -- $maintainer  $changelog_date
+CHANGELOG
 
 # Unchanged files, script and manifest: the .deb is up to date.
 stamp="$work/contents.md5"
@@ -54,14 +82,14 @@ fi
 # Shared-library dependencies of every ELF file (executables and libraries).
 mkdir -p "$work/pkg/debian"
 printf 'Source: %s\n\nPackage: %s\nArchitecture: any\n' "$package" "$package" >"$work/pkg/debian/control"
-# (relative paths: our own libraries are then found in the package and need no dependency; their
-# unversioned sonames give warnings, kept in shlibdeps.log)
+# (relative paths: our own libraries are then found in the package and need no dependency)
 cd "$work/pkg"
-mapfile -t elf_files < <(find "debian/$package/usr/lib" -type f \( -name '*.so' -o -perm -u+x \))
+mapfile -t elf_files < <(find "debian/$package/usr/lib" -type f \( -name '*.so.*' -o -perm -u+x \))
 shlibs=$(dpkg-shlibdeps -O "${elf_files[@]}" 2>"$work/shlibdeps.log" | sed -n 's/^shlibs:Depends=//p')
 [ -n "$shlibs" ] || { cat "$work/shlibdeps.log" >&2; echo "build_deb: dpkg-shlibdeps found no dependencies" >&2; exit 1; }
-# rosrun (launch files, README), roslaunch and roscore, the nodelet manager and loader
-runtime="rosbash, python3-roslaunch, libnodeletlib-tools"
+# rosrun (launch files, README), roslaunch and roscore, the nodelet manager and loader; the
+# dynamic_reconfigure module lidar_deskew.cfg (Python 3, imports dynamic_reconfigure)
+runtime="rosbash, python3-roslaunch, libnodeletlib-tools, python3:any, python3-dynamic-reconfigure"
 
 # The packages holding what the installed CMake config finds: catkin, its catkin dependencies, Eigen, MRPT.
 owner() { dpkg-query -S "$1" | head -n 1 | cut -d: -f1; }
@@ -82,7 +110,6 @@ for dependency in $(sed -n 's/^set(depends "\(.*\)")$/\1/p' "$config" | tr ';' '
 done
 recommends=$(printf '%s\n' "${dev_packages[@]}" | LC_ALL=C sort -u | paste -sd, | sed 's/,/, /g')
 
-maintainer=$(sed -n 's:.*<maintainer email="\(.*\)">\(.*\)</maintainer>.*:\2 <\1>:p' "$repo/package.xml" | head -n 1)
 # package.xml's description, folded to 78 columns, one leading space per line
 description=$(sed -n '/<description>/,/<\/description>/p' "$repo/package.xml" | sed 's:</*description>::' |
   tr -s ' \n' ' ' | sed 's/^ *//; s/ *$//' | fold -s -w 78 | sed 's/^/ /; s/ *$//')
@@ -98,10 +125,19 @@ Recommends: $recommends
 Suggests: rviz
 Section: science
 Priority: optional
-Description: ROS 1 deskewing of 2D LIDAR scans: nodelet, node and bag tools
+Description: ROS 1 deskewing of 2D LIDAR scans and multi-line clouds
 $description
 CONTROL
+# The libraries in ld.so's path: ldconfig runs after installation and removal (trigger), and packages
+# built against them depend on this version or later (shlibs: name, SONAME version, dependency).
+echo "activate-noawait ldconfig" >"$stage/DEBIAN/triggers"
+for library in "$stage/usr/lib/$multiarch"/lib*.so.*.*.*; do
+  soname=$(objdump -p "$library" | sed -n 's/^ *SONAME *//p')
+  echo "${soname%%.so.*} ${soname#*.so.} $package (>= $version)"
+done | LC_ALL=C sort >"$stage/DEBIAN/shlibs"
+chmod 644 "$stage/DEBIAN/triggers" "$stage/DEBIAN/shlibs"
 (cd "$stage" && find usr -type f | LC_ALL=C sort | xargs md5sum) >"$stage/DEBIAN/md5sums"
+rm -f "$repo/.build/${package}_"*"_$arch.deb"  # an earlier version's
 dpkg-deb --build --root-owner-group "$stage" "$deb" >/dev/null
 echo "$contents" >"$stamp"
 echo "$deb"

@@ -1,6 +1,8 @@
 #!/usr/bin/env bash
 # Builds the package with catkin_make in a workspace inside the repo's ignored .build/ folder
-# (.build/ws/src/lidar_deskew links back to the repo) and installs it to .build/ws/install.
+# (.build/ws/src/lidar_deskew links back to the repo) and installs it afresh to .build/ws/install (an
+# earlier install's files that the package no longer installs would linger; test/check_install.sh
+# checks what is installed and what is not).
 # Usage: scripts/build_workspace.sh [extra catkin_make arguments...]
 set -euo pipefail
 export PATH=/usr/bin:/bin:$PATH
@@ -13,4 +15,5 @@ cd "$ws"
 jobs=${LIDAR_DESKEW_JOBS:-2}
 source "$repo/scripts/compiler_cache.sh"
 catkin_make -j"$jobs" -DCMAKE_BUILD_TYPE=Release "${compiler_cache_args[@]}" "$@"
+rm -rf "$ws/install"
 catkin_make -j"$jobs" install "$@" >/dev/null

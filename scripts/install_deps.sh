@@ -8,8 +8,8 @@ PACKAGES=(
   # toolchain and test tools
   cmake g++ make git libgtest-dev libbenchmark-dev bc
   ccache  # shared by the workspace's and the Debian package's builds (scripts/compiler_cache.sh)
-  # the Debian package: dpkg-shlibdeps, dpkg-architecture
-  dpkg-dev
+  # the Debian package: dpkg-shlibdeps, dpkg-architecture; its check (debian_package test)
+  dpkg-dev lintian
   # fuzzing: clang with libFuzzer, ASan and UBSan
   clang libclang-rt-14-dev
   # ROS 1 from Debian: catkin, roscpp, nodelet, tf2, messages, rostest, rosbag

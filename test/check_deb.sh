@@ -1,6 +1,9 @@
 #!/usr/bin/env bash
 # The Debian package works from its own files. Builds it with scripts/build_deb.sh (or takes DEB),
-# checks its control data and that apt resolves its Depends, unpacks it into a scratch root and then,
+# checks its control data and that apt resolves its Depends, that lintian finds no error (it prints the
+# warnings; each warning's tag must be justified in README.md's "Install as a Debian package"), that
+# it holds what a downstream package needs and not the simulators' and scoring's headers, unpacks it
+# into a scratch root and then,
 # in a private mount namespace where that root is laid over /usr (where dpkg -i would put the files;
 # the rest of the machine does not see them, and a copy installed on the machine is hidden) and with
 # an empty environment (no build tree, devel space or workspace install on any path):
@@ -119,7 +122,7 @@ trap 'rm -rf "$scratch"' EXIT
 
 # Control data: named and versioned as built, its Depends resolve on this machine.
 field() { dpkg-deb -f "$deb" "$1"; }
-version=$(sed -n 's:.*<version>\(.*\)</version>.*:\1:p' "$repo/package.xml" | head -n 1)
+version=$(sed -n 's:.*<version>\(.*\)</version>.*:\1:p' "$repo/package.xml" | head -n 1)-1
 [ "$(field Package)" = ros-lidar-deskew ] && [ "$(field Version)" = "$version" ] &&
   [ "$(field Architecture)" = "$(dpkg --print-architecture)" ] || { echo "FAIL: control fields"; exit 1; }
 depends=$(field Depends)
@@ -130,19 +133,54 @@ done
 apt-get install -s "$deb" >"$scratch/apt.log" 2>&1 || { cat "$scratch/apt.log"; echo "FAIL: apt cannot install it"; exit 1; }
 grep -E "^Inst ros-lidar-deskew|ros-lidar-deskew is already the newest" "$scratch/apt.log" ||
   { cat "$scratch/apt.log"; echo "FAIL: apt would not install it"; exit 1; }
+
+# lintian: no error; every warning justified in the README (its tag named in the Debian section).
+command -v lintian >/dev/null || { echo "FAIL: lintian is not installed (scripts/install_deps.sh)"; exit 1; }
+lintian_options=()
+[ "$(id -u)" -ne 0 ] || lintian_options=(--allow-root)
+lintian "${lintian_options[@]}" --tag-display-limit 0 "$deb" >"$scratch/lintian.txt" 2>&1 || true
+echo "lintian: $(grep -c '^E: ' "$scratch/lintian.txt") errors, $(grep -c '^W: ' "$scratch/lintian.txt") warnings"
+grep -E '^[EW]: ' "$scratch/lintian.txt" || true
+if grep -q '^E: ' "$scratch/lintian.txt"; then echo "FAIL: lintian reports errors"; exit 1; fi
+if grep -qv -e '^[EWIPNXO]: ' "$scratch/lintian.txt"; then
+  cat "$scratch/lintian.txt"
+  echo "FAIL: lintian did not run"
+  exit 1
+fi
+justified=$(sed -n '/^### Install as a Debian package/,/^## /p' "$repo/README.md")
+for tag in $(sed -n 's/^W: [^ ]* \([^ ]*\).*/\1/p' "$scratch/lintian.txt" | sort -u); do
+  grep -q "\b$tag\b" <<<"$justified" || { echo "FAIL: lintian warning $tag is not justified in README.md"; exit 1; }
+done
+
 # Debian's layout, and no catkin workspace files in /usr.
 files=$(dpkg-deb -c "$deb" | awk '{print $6}')
 echo "$(echo "$files" | wc -l) entries"
 multiarch=$(dpkg-architecture -qDEB_HOST_MULTIARCH)
+soversion=$(cut -d. -f1-2 <<<"$version")  # the libraries' SONAME version: MAJOR.MINOR
 for path in usr/lib/lidar_deskew/deskew_node usr/lib/lidar_deskew/deskew_bag usr/lib/lidar_deskew/deskew_simulate \
   usr/lib/lidar_deskew/deskew_metrics usr/lib/lidar_deskew/deskew_core_demo usr/lib/lidar_deskew/deskew_calibrate \
   "usr/lib/$multiarch/liblidar_deskew_nodelets.so" "usr/lib/$multiarch/liblidar_deskew_core.so" \
   "usr/lib/$multiarch/cmake/lidar_deskew/lidar_deskewConfig.cmake" usr/include/lidar_deskew/core/deskew.h \
   usr/share/lidar_deskew/package.xml usr/share/lidar_deskew/nodelets.xml usr/share/lidar_deskew/launch/deskew.launch \
   usr/share/lidar_deskew/launch/deskew_node.launch usr/share/lidar_deskew/launch/core_demo.launch \
-  usr/share/lidar_deskew/config/deskew.yaml usr/share/lidar_deskew/rviz/deskew.rviz; do
+  usr/share/lidar_deskew/config/deskew.yaml usr/share/lidar_deskew/rviz/scan_deskew.rviz \
+  usr/share/lidar_deskew/rviz/cloud_deskew.rviz usr/share/lidar_deskew/launch/demo_cloud.launch \
+  "usr/lib/$multiarch/liblidar_deskew_core.so.$soversion" usr/lib/python3/dist-packages/lidar_deskew/cfg/DeskewConfig.py \
+  usr/share/doc/ros-lidar-deskew/copyright usr/share/doc/ros-lidar-deskew/changelog.Debian.gz \
+  usr/share/doc/ros-lidar-deskew/changelog.gz usr/share/doc/ros-lidar-deskew/README.md \
+  usr/share/doc/ros-lidar-deskew/docs/PARAMETERS.md; do
   grep -qx "./$path" <<<"$files" || { echo "FAIL: the package lacks /$path"; exit 1; }
 done
+# Only what a downstream package needs: not the simulators', scoring's or calibration's headers
+# (their code is linked into the executables), no Python bytecode.
+if grep -E '^\./usr/include/lidar_deskew/(sim|eval)/|bag_calibrate\.h$|__pycache__|liblidar_deskew_(sim|eval|calibrate)' \
+  <<<"$files"; then
+  echo "FAIL: the package holds files that no downstream package needs"
+  exit 1
+fi
+dpkg-deb -I "$deb" triggers | grep -qx "activate-noawait ldconfig" || { echo "FAIL: no ldconfig trigger"; exit 1; }
+dpkg-deb -I "$deb" shlibs | grep -qx "liblidar_deskew_core $soversion ros-lidar-deskew (>= $version)" ||
+  { echo "FAIL: no shlibs entry for liblidar_deskew_core"; exit 1; }
 if grep -E '/(setup|local_setup)\.[a-z]+$|_setup_util\.py$|\.catkin$|/env\.sh$' <<<"$files"; then
   echo "FAIL: workspace setup files in the package"
   exit 1

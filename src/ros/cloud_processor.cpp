@@ -57,6 +57,29 @@ struct Coordinates {
   const PointField& z;
 };
 
+/// The field of that name holding one number, when it is none of `others` and shares no byte with them
+/// (null otherwise).
+const PointField* separateField(const sensor_msgs::PointCloud2& cloud, const std::string& name,
+                                const std::vector<const PointField*>& others) {
+  for (const PointField& field : cloud.fields) {
+    if (field.name != name || field.count > 1)
+      continue;
+    for (const PointField* other : others)
+      if (other != nullptr && (other == &field || overlap(field, *other)))
+        return nullptr;
+    return &field;
+  }
+  return nullptr;
+}
+
+/// The field of that name, or null.
+const PointField* fieldNamed(const sensor_msgs::PointCloud2& cloud, const std::string& name) {
+  for (const PointField& field : cloud.fields)
+    if (field.name == name)
+      return &field;
+  return nullptr;
+}
+
 template <typename T>
 T load(const std::uint8_t* at) {
   T value;
@@ -174,6 +197,27 @@ void writeReturns(const Coordinates& xyz, std::uint32_t time_offset, double time
     store(point + z, static_cast<T>(corrected[k].z()));
     if constexpr (!std::is_void_v<TimeType>)
       store(point + time_offset, static_cast<TimeType>(time_value));
+  }
+}
+
+/// Scales each return's `range` field (of type T, any unit) by the ratio of its corrected position's
+/// distance from the sensor to its raw one: the range of the corrected point, in the driver's unit and
+/// from the driver's own origin (Ouster's beam origin lies a few cm from the sensor frame's: a still
+/// sensor's ranges stay as they were). Integers are rounded; values kept within their type; a value that is
+/// not finite, or would not be, is left as it was.
+template <typename T>
+void scaleRanges(std::uint32_t range_offset, const std::vector<std::uint32_t>& byte_offsets,
+                 const std::vector<Eigen::Vector3d>& raw, const std::vector<Eigen::Vector3d>& corrected,
+                 sensor_msgs::PointCloud2& output) {
+  std::uint8_t* const data = output.data.data();
+  for (std::size_t k = 0; k < corrected.size(); ++k) {
+    std::uint8_t* const at = data + byte_offsets[k] + range_offset;
+    const double scaled = static_cast<double>(load<T>(at)) * corrected[k].norm() / raw[k].norm();
+    if (!std::isfinite(scaled))
+      continue;  // (a non-finite value, or a non-finite correction: left as it was)
+    const double value = std::is_integral_v<T> ? std::round(scaled) : scaled;
+    store(at, static_cast<T>(std::clamp(value, static_cast<double>(std::numeric_limits<T>::lowest()),
+                                        static_cast<double>(std::numeric_limits<T>::max()))));
   }
 }
 
@@ -321,10 +365,20 @@ CloudOutputs CloudProcessor::correct(const PreparedCloud& prepared, const mrpt::
                                        *output);
     });
   });
+  // A field that depends on x y z: Ouster's range.
+  const PointField* const range =
+      separateField(input, "range",
+                    {&xyz.x, &xyz.y, &xyz.z, prepared.byAzimuth() ? nullptr : fieldNamed(input, time.name)});
+  if (range != nullptr) {
+    withFieldType(range->datatype, [&](auto typed) {
+      scaleRanges<decltype(typed)>(range->offset, prepared.byte_offsets, prepared.points, corrected_,
+                                   *output);
+    });
+  }
   CloudOutputs outputs;
   outputs.cloud = output;
   if (params_.cloud_scan.enabled)
-    outputs.scan = planarScan(corrected_, output->header);
+    outputs.scan = planarScan(corrected_, prepared, output->header);
   return outputs;
 }
 
@@ -332,11 +386,12 @@ CloudOutputs CloudProcessor::passThrough(const PreparedCloud& prepared) const {
   CloudOutputs outputs;
   outputs.cloud = prepared.message;
   if (params_.cloud_scan.enabled)
-    outputs.scan = planarScan(prepared.points, prepared.message->header);  // the raw points
+    outputs.scan = planarScan(prepared.points, prepared, prepared.message->header);  // the raw points
   return outputs;
 }
 
 sensor_msgs::LaserScan::ConstPtr CloudProcessor::planarScan(const std::vector<Eigen::Vector3d>& points,
+                                                            const PreparedCloud& prepared,
                                                             const std_msgs::Header& header) const {
   const DeskewParams::CloudScan& band = params_.cloud_scan;
   auto scan = boost::make_shared<sensor_msgs::LaserScan>();
@@ -351,6 +406,11 @@ sensor_msgs::LaserScan::ConstPtr CloudProcessor::planarScan(const std::vector<Ei
   scan->range_min = 0.0f;
   scan->range_max = static_cast<float>(band.range_max);
   scan->ranges.assign(bins, std::numeric_limits<float>::infinity());
+  // The intensity of the point kept in each bin, when the cloud has an intensity field (0: no point).
+  const sensor_msgs::PointCloud2& cloud = *prepared.message;
+  const PointField* const intensity = separateField(cloud, "intensity", {});
+  if (intensity != nullptr)
+    scan->intensities.assign(bins, 0.0f);
   // A grid round the whole circle: the ray after the last bin is the first (+pi is -pi).
   const bool whole_circle =
       std::abs(static_cast<double>(bins) * band.angle_increment - 2.0 * M_PI) <= 0.5 * band.angle_increment;
@@ -366,8 +426,15 @@ sensor_msgs::LaserScan::ConstPtr CloudProcessor::planarScan(const std::vector<Ei
       bin = 0.0;
     if (bin < 0.0 || bin >= static_cast<double>(bins))
       continue;
-    float& kept = scan->ranges[static_cast<std::size_t>(bin)];
-    kept = std::min(kept, static_cast<float>(range));
+    const auto index = static_cast<std::size_t>(bin);
+    if (static_cast<float>(range) >= scan->ranges[index])
+      continue;
+    scan->ranges[index] = static_cast<float>(range);
+    if (intensity != nullptr) {
+      const std::size_t point_index = static_cast<std::size_t>(&point - points.data());
+      scan->intensities[index] = static_cast<float>(readNumber(
+          &cloud.data[prepared.byte_offsets[point_index] + intensity->offset], intensity->datatype));
+    }
   }
   return scan;
 }

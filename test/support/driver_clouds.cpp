@@ -20,7 +20,6 @@ PointField field(const std::string& name, std::uint32_t offset, std::uint8_t dat
   return f;
 }
 
-/// The scan as a driver's cloud: x y z float32 at 0, intensity float32 at 12, the time field at 16.
 }  // namespace
 
 sensor_msgs::PointCloud2::Ptr cloudOf(const sensor_msgs::LaserScan& scan, Layout layout) {
@@ -28,8 +27,11 @@ sensor_msgs::PointCloud2::Ptr cloudOf(const sensor_msgs::LaserScan& scan, Layout
   cloud->header = scan.header;
   const bool ouster = layout == Layout::kOuster;
   cloud->fields = {field("x", 0, PointField::FLOAT32), field("y", 4, PointField::FLOAT32),
-                   field("z", 8, PointField::FLOAT32), field("intensity", 12, PointField::FLOAT32),
-                   field(ouster ? "t" : "time", 16, ouster ? PointField::UINT32 : PointField::FLOAT32)};
+                   field("z", 8, PointField::FLOAT32), field("intensity", 12, PointField::FLOAT32)};
+  if (ouster)
+    cloud->fields.push_back(field("range", 20, PointField::UINT32));
+  cloud->fields.push_back(
+      field(ouster ? "t" : "time", 16, ouster ? PointField::UINT32 : PointField::FLOAT32));
   cloud->point_step = 24;
   const std::size_t n = scan.ranges.size();
   const double last = (n - 1) * static_cast<double>(scan.time_increment);
@@ -51,6 +53,8 @@ sensor_msgs::PointCloud2::Ptr cloudOf(const sensor_msgs::LaserScan& scan, Layout
     if (ouster) {
       const auto t = static_cast<std::uint32_t>(std::llround(offset * 1e9));
       std::memcpy(point + 16, &t, sizeof t);
+      const auto range_mm = static_cast<std::uint32_t>(hit ? std::llround(r * 1e3) : 0);
+      std::memcpy(point + 20, &range_mm, sizeof range_mm);
     } else {
       const auto time = static_cast<float>(offset - last);
       std::memcpy(point + 16, &time, sizeof time);

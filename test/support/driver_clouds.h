@@ -1,6 +1,6 @@
 // Test support: a simulated LaserScan written as drivers write PointCloud2s (Ouster's organized layout
-// with zeros for no return and uint32 ns offsets; Velodyne's dense layout stamped at the last packet
-// with negative float32 seconds).
+// with zeros for no return, uint32 ns offsets and uint32 mm ranges; Velodyne's dense layout stamped at the
+// last packet with negative float32 seconds).
 #pragma once
 
 #include <sensor_msgs/LaserScan.h>
@@ -16,8 +16,9 @@ struct Xy {
   double x, y;
 };
 
-/// The scan as a driver's cloud: x y z float32 at 0, intensity float32 at 12, the time field at 16,
-/// point_step 24.
+/// The scan as a driver's cloud: x y z float32 at 0, intensity float32 at 12 (100 + the beam's index),
+/// the time field at 16, point_step 24; Ouster's also range uint32 [mm] at 20 (the beam's range, 0 for no
+/// return), listed before the time field.
 sensor_msgs::PointCloud2::Ptr cloudOf(const sensor_msgs::LaserScan& scan, Layout layout);
 
 /// The float32 at `offset` of point i (height 1).

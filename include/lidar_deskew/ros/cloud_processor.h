@@ -48,14 +48,17 @@ struct PreparedCloud {
 struct CloudOutputs {
   sensor_msgs::PointCloud2::ConstPtr cloud;  ///< every input field and its layout; stamped at the reference
   /// With cloud_scan: the points within the height band as a planar LaserScan (nearest per bin), in the
-  /// cloud's frame and stamp; null otherwise.
+  /// cloud's frame and stamp, with each kept point's `intensity` field as its intensity when the cloud
+  /// has one (intensities empty otherwise; 0 in bins without a point); null without cloud_scan.
   sensor_msgs::LaserScan::ConstPtr scan;
 };
 
 /// Corrects clouds with the core. The output keeps every field and the layout of the input: x y z of
 /// each return replaced by its position in the input's frame at the reference time; the time field of
 /// each return rewritten to the time its position now holds (0 from the stamp, or the reference time
-/// when absolute), so a consumer that deskews by that field does not correct it twice. Points that are
+/// when absolute), so a consumer that deskews by that field does not correct it twice. A `range` field
+/// (Ouster's, uint32 mm) is scaled by how much farther from the sensor the corrected position lies
+/// than the raw one, so it stays the distance of x y z in the driver's own unit. Points that are
 /// no return (a non-finite coordinate, or exactly the origin: "no return" for Ouster and others) are
 /// left as they were: an organized cloud keeps its shape. Not thread-safe.
 class CloudProcessor {
@@ -79,8 +82,10 @@ class CloudProcessor {
   CloudOutputs passThrough(const PreparedCloud& prepared) const;
 
  private:
-  /// The planar scan of the finite `points` within the height band (nearest per bin).
+  /// The planar scan of the finite `points` (the returns of `prepared`, in its order: raw or corrected)
+  /// within the height band (nearest per bin), with the intensities of `prepared`'s intensity field.
   sensor_msgs::LaserScan::ConstPtr planarScan(const std::vector<Eigen::Vector3d>& points,
+                                              const PreparedCloud& prepared,
                                               const std_msgs::Header& header) const;
 
   DeskewParams params_;
