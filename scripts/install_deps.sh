@@ -17,7 +17,7 @@ PACKAGES=(
   libsensor-msgs-dev libnav-msgs-dev libgeometry-msgs-dev libtf2-msgs-dev librostest-dev librosbag-dev
   python3-rosbag python3-rostest python3-roslaunch libnodeletlib-tools rosbash python3-rosnode python3-rostopic
   libdiagnostic-updater-dev python3-diagnostic-msgs  # the latter: rostopic echo /diagnostics
-  libdynamic-reconfigure-config-init-mutex-dev python3-dynamic-reconfigure  # cfg/Deskew.cfg, dynparam
+  libdynamic-reconfigure-config-init-mutex-dev python3-dynamic-reconfigure  # cfg/Deskew*.cfg, dynparam
   # geometry: Eigen, MRPT 2.5 poses and its ROS 1 bridge, PCL with pcl_ros, laser_geometry (reference)
   libeigen3-dev libmrpt-poses-dev libmrpt-ros1bridge-dev libpcl-ros-dev liblaser-geometry-dev
   # Python tools (figures, metrics): Debian's, never pip

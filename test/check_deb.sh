@@ -165,7 +165,8 @@ for path in usr/lib/lidar_deskew/deskew_node usr/lib/lidar_deskew/deskew_bag usr
   usr/share/lidar_deskew/launch/deskew_node.launch usr/share/lidar_deskew/launch/core_demo.launch \
   usr/share/lidar_deskew/config/deskew.yaml usr/share/lidar_deskew/rviz/scan_deskew.rviz \
   usr/share/lidar_deskew/rviz/cloud_deskew.rviz usr/share/lidar_deskew/launch/demo_cloud.launch \
-  "usr/lib/$multiarch/liblidar_deskew_core.so.$soversion" usr/lib/python3/dist-packages/lidar_deskew/cfg/DeskewConfig.py \
+  "usr/lib/$multiarch/liblidar_deskew_core.so.$soversion" usr/lib/python3/dist-packages/lidar_deskew/cfg/DeskewScanConfig.py \
+  usr/lib/python3/dist-packages/lidar_deskew/cfg/DeskewCloudConfig.py \
   usr/share/doc/ros-lidar-deskew/copyright usr/share/doc/ros-lidar-deskew/changelog.Debian.gz \
   usr/share/doc/ros-lidar-deskew/changelog.gz usr/share/doc/ros-lidar-deskew/README.md \
   usr/share/doc/ros-lidar-deskew/docs/PARAMETERS.md; do

@@ -20,7 +20,8 @@ for path in \
   include/lidar_deskew/ros/scan_pipeline.h \
   include/lidar_deskew/node/laser_scan_deskew_node.h \
   include/lidar_deskew/node/config_params.h \
-  include/lidar_deskew/DeskewConfig.h \
+  include/lidar_deskew/DeskewScanConfig.h \
+  include/lidar_deskew/DeskewCloudConfig.h \
   include/lidar_deskew/bag/bag_deskew.h \
   share/lidar_deskew/package.xml \
   share/lidar_deskew/nodelets.xml \

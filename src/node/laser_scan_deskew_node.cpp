@@ -98,11 +98,17 @@ bool sameTiming(const core::TimingConfig& a, const core::TimingConfig& b) {
          a.scan_period == b.scan_period && a.use_scan_period == b.use_scan_period;
 }
 
+/// The node's dynamic_reconfigure config: each node type offers only the parameters its input reads.
+template <class Processor>
+using ConfigOf = std::conditional_t<std::is_same_v<Processor, ros_adapter::ScanProcessor>, DeskewScanConfig,
+                                    DeskewCloudConfig>;
+
 /// "name value" of each parameter whose value differs between two configs.
-std::string changes(const DeskewConfig& before, const DeskewConfig& after) {
+template <class Config>
+std::string changes(const Config& before, const Config& after) {
   std::string text;
-  for (const DeskewConfig::AbstractParamDescriptionConstPtr& description :
-       DeskewConfig::__getParamDescriptions__()) {
+  for (const typename Config::AbstractParamDescriptionConstPtr& description :
+       Config::__getParamDescriptions__()) {
     boost::any was;
     boost::any now;
     description->getValue(before, was);
@@ -138,8 +144,8 @@ std::string changes(const DeskewConfig& before, const DeskewConfig& after) {
 template <class Processor>
 struct DeskewNode<Processor>::Reconfigure {
   explicit Reconfigure(const ros::NodeHandle& private_nh) : server(private_nh) {}
-  dynamic_reconfigure::Server<DeskewConfig> server;
-  DeskewConfig taken;
+  dynamic_reconfigure::Server<ConfigOf<Processor>> server;
+  ConfigOf<Processor> taken;
   bool first = true;
 };
 
@@ -213,13 +219,12 @@ DeskewNode<Processor>::DeskewNode(ros::NodeHandle nh, ros::NodeHandle private_nh
   // Last: from here on a reconfigure callback may change params_ (under mutex_) from another thread.
   // dynamic_reconfigure: the server reads the parameters as loaded above and calls back at once.
   reconfigure_ = std::make_unique<Reconfigure>(private_nh_);
-  reconfigure_->server.setCallback([this](DeskewConfig& config, std::uint32_t /*level*/) {
+  reconfigure_->server.setCallback([this](ConfigOf<Processor>& config, std::uint32_t /*level*/) {
     std::lock_guard<std::mutex> lock(mutex_);
     if (reconfigure_->first)
       reconfigure_->taken = config;
     try {
-      const ros_adapter::DeskewParams next =
-          ros_adapter::DeskewParams::load(node::ConfigParams(config), params_);
+      const ros_adapter::DeskewParams next = ros_adapter::DeskewParams::load(ConfigParams(config), params_);
       pipeline_.reconfigure(next);
       if (timing_check_ && !sameTiming(next.timing, params_.timing))
         timing_check_->reset(next.timing);

@@ -17,8 +17,9 @@ namespace {
 constexpr double kNoBound = 0.0;
 
 // The one table of parameters: name, type, default, unit, min, max, min exclusive, choices, live only,
-// reconfigurable (may change while the node runs: cfg/Deskew.cfg), meaning. Bounds are inclusive unless min
-// is exclusive; strings with choices take one of them.
+// reconfigurable (may change while the node runs: cfg/DeskewScan.cfg, cfg/DeskewCloud.cfg), meaning, and
+// the input it applies to when only one (scans or clouds). Bounds are inclusive unless min is exclusive;
+// strings with choices take one of them.
 const ParamSpec kSpecs[] = {
     {"fixed_frame", "string", "odom", "", kNoBound, kNoBound, false, "", false, false,
      "frame the base moves in"},
@@ -27,45 +28,50 @@ const ParamSpec kSpecs[] = {
     {"reference", "string", "start", "", kNoBound, kNoBound, false, "start|middle|end", false, true,
      "time every point is re-expressed at; outputs are stamped with it"},
     {"stamp_at", "string", "start", "", kNoBound, kNoBound, false, "start|end", false, true,
-     "which beam header.stamp refers to"},
+     "scans: which beam header.stamp refers to", Input::kScans},
     {"time_offset", "double", "0.0", "s", -10.0, 10.0, false, "", false, true,
      "added to header.stamp (before stamp_at): a fixed latency; scans and clouds; deskew_calibrate finds it"},
     {"beam_order", "string", "as_message", "", kNoBound, kNoBound, false, "as_message|reversed", false, true,
-     "scans: the beams' order in time is their index order, or its reverse"},
+     "scans: the beams' order in time is their index order, or its reverse", Input::kScans},
     {"scan_period", "double", "0.0", "s", 0.0, 60.0, false, "", false, true,
-     "revolution time when time_increment and scan_time are 0; 0 = none"},
+     "revolution time when time_increment and scan_time are 0; 0 = none", Input::kScans},
     {"use_scan_period", "bool", "false", "", kNoBound, kNoBound, false, "", false, true,
-     "scans: beam spacing from scan_period even when the message gives time_increment or scan_time"},
+     "scans: beam spacing from scan_period even when the message gives time_increment or scan_time",
+     Input::kScans},
     {"max_sweep_duration", "double", "1.0", "s", 0.0, 60.0, true, "", false, false,
      "longer sweeps are malformed"},
     {"time_field", "string", "", "", kNoBound, kNoBound, false, "", false, false,
-     "clouds: the per-point time field; empty = t, time, timestamp, time_stamp, offset_time, stamps"},
+     "clouds: the per-point time field; empty = t, time, timestamp, time_stamp, offset_time, stamps",
+     Input::kClouds},
     {"time_unit", "string", "auto", "", kNoBound, kNoBound, false, "auto|s|ms|us|ns", false, false,
-     "clouds: unit of the time field; auto = decided from its values"},
+     "clouds: unit of the time field; auto = decided from its values", Input::kClouds},
     {"time_base", "string", "auto", "", kNoBound, kNoBound, false, "auto|header|absolute", false, false,
-     "clouds: time values are offsets from header.stamp or absolute; auto = decided from its values"},
+     "clouds: time values are offsets from header.stamp or absolute; auto = decided from its values",
+     Input::kClouds},
     {"azimuth_timing", "bool", "false", "", kNoBound, kNoBound, false, "", false, false,
-     "clouds without a time field: time each point from its azimuth (spinning sensors); false = drop them"},
+     "clouds without a time field: time each point from its azimuth (spinning sensors); false = drop them",
+     Input::kClouds},
     {"azimuth_direction", "string", "cw", "", kNoBound, kNoBound, false, "cw|ccw", false, false,
-     "clouds timed by azimuth: the spin seen from above (Velodyne, Ouster: cw)"},
+     "clouds timed by azimuth: the spin seen from above (Velodyne, Ouster: cw)", Input::kClouds},
     {"azimuth_period", "double", "0.1", "s", 0.0, 60.0, true, "", false, false,
-     "clouds timed by azimuth: one revolution (10 Hz: 0.1)"},
+     "clouds timed by azimuth: one revolution (10 Hz: 0.1)", Input::kClouds},
     {"azimuth_stamp_at", "string", "start", "", kNoBound, kNoBound, false, "start|end", false, false,
-     "clouds timed by azimuth: header.stamp is the first or the last point's time"},
+     "clouds timed by azimuth: header.stamp is the first or the last point's time", Input::kClouds},
     {"cloud_scan", "bool", "false", "", kNoBound, kNoBound, false, "", false, false,
-     "clouds: also a planar LaserScan <points>_deskewed_scan of the corrected points in the height band"},
+     "clouds: also a planar LaserScan <points>_deskewed_scan of the corrected points in the height band",
+     Input::kClouds},
     {"scan_height_min", "double", "-0.1", "m", -100.0, 100.0, false, "", false, true,
-     "clouds: the band's lowest z in the cloud's frame"},
+     "clouds: the band's lowest z in the cloud's frame", Input::kClouds},
     {"scan_height_max", "double", "0.1", "m", -100.0, 100.0, false, "", false, true,
-     "clouds: the band's highest z in the cloud's frame"},
+     "clouds: the band's highest z in the cloud's frame", Input::kClouds},
     {"scan_angle_min", "double", "-3.14159", "rad", -3.15, 3.15, false, "", false, true,
-     "clouds: the planar scan's first bearing"},
+     "clouds: the planar scan's first bearing", Input::kClouds},
     {"scan_angle_max", "double", "3.14159", "rad", -3.15, 3.15, false, "", false, true,
-     "clouds: the planar scan's last bearing"},
+     "clouds: the planar scan's last bearing", Input::kClouds},
     {"scan_angle_increment", "double", "0.00436332", "rad", 1e-5, 1.0, false, "", false, true,
-     "clouds: the planar scan's bin width (0.25 deg)"},
+     "clouds: the planar scan's bin width (0.25 deg)", Input::kClouds},
     {"scan_range_max", "double", "100.0", "m", 0.0, 10000.0, true, "", false, true,
-     "clouds: the planar scan's range_max; farther points are left out"},
+     "clouds: the planar scan's range_max; farther points are left out", Input::kClouds},
     {"knot_interval", "double", "0.005", "s", 1e-5, 1.0, false, "", false, false,
      "spacing of tf lookups across the sweep (plus tf's own sample times)"},
     {"interpolation", "string", "twist", "", kNoBound, kNoBound, false, "twist|linear", false, false,
@@ -88,9 +94,9 @@ const ParamSpec kSpecs[] = {
     {"input_queue_size", "int", "10", "scans", 1.0, 100000.0, false, "", true, false,
      "roscpp's queue of the input subscription (losses there count as lost upstream)"},
     {"rebin_min_gap", "double", "0.05", "m", 0.0, 100.0, false, "", false, true,
-     "contour join distance, constant part"},
+     "contour join distance, constant part", Input::kScans},
     {"rebin_gap_factor", "double", "5.0", "", 0.0, 1000.0, false, "", false, true,
-     "contour join distance per (range x angle increment)"},
+     "contour join distance per (range x angle increment)", Input::kScans},
     {"diagnostics_period", "double", "1.0", "s", 0.0, 3600.0, true, "", true, true, "period of /diagnostics"},
 };
 
@@ -180,6 +186,15 @@ const std::vector<std::string>& DeskewParams::liveOnlyNames() {
 
 const std::vector<std::string>& DeskewParams::reconfigurableNames() {
   static const std::vector<std::string> names = namesWhere(&ParamSpec::reconfigurable);
+  return names;
+}
+
+std::vector<std::string> DeskewParams::reconfigurableNames(Input node) {
+  std::vector<std::string> names;
+  for (const ParamSpec& spec : kSpecs) {
+    if (spec.reconfigurable && spec.readBy(node))
+      names.push_back(spec.name);
+  }
   return names;
 }
 

@@ -1,6 +1,6 @@
 // The launch files as users call them (launch_files.test): two instances on two scans publish on
-// outputs named after their inputs, never on one topic; a `params:=` file wins over the launch
-// defaults, an argument given on the command line wins over the file.
+// outputs named after their inputs, never on one topic; a `params:=` file is layered over
+// config/deskew.yaml, an argument given on the command line wins over both.
 #include <gtest/gtest.h>
 #include <ros/ros.h>
 
@@ -38,7 +38,7 @@ TEST(LaunchFiles, TwoInstancesPublishOnOutputsNamedAfterTheirInputs) {
   EXPECT_EQ(topics.count("/scan_deskewed"), 0u);
 }
 
-TEST(LaunchFiles, ParamsFileWinsOverDefaultsAndArgumentsWinOverTheFile) {
+TEST(LaunchFiles, ParamsFileOverDefaultsAndArgumentsOverTheFile) {
   std::string value;
   // front_deskew: params:=launch_params.yaml (base_frame base_footprint, stamp_at end), reference:=middle
   ASSERT_TRUE(ros::param::get("/front_deskew/base_frame", value));
@@ -46,8 +46,9 @@ TEST(LaunchFiles, ParamsFileWinsOverDefaultsAndArgumentsWinOverTheFile) {
   ASSERT_TRUE(ros::param::get("/front_deskew/stamp_at", value));
   EXPECT_EQ(value, "end");
   ASSERT_TRUE(ros::param::get("/front_deskew/reference", value));
-  EXPECT_EQ(value, "middle");                                  // the argument, over the file's "start"
-  EXPECT_FALSE(ros::param::has("/front_deskew/fixed_frame"));  // neither given: the node's default
+  EXPECT_EQ(value, "middle");  // the argument, over the file's "start"
+  ASSERT_TRUE(ros::param::get("/front_deskew/fixed_frame", value));
+  EXPECT_EQ(value, "odom");  // neither in the file nor given: config/deskew.yaml's, under the file
   // neato_deskew: deskew_calibrate's file; the node took it (it advertised its outputs).
   double offset = 0.0;
   ASSERT_TRUE(ros::param::get("/neato_deskew/time_offset", offset));

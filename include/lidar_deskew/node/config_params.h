@@ -1,20 +1,23 @@
-// The parameters that change while the node runs, as dynamic_reconfigure's generated config holds them
-// (cfg/Deskew.cfg): read by name, as the parameter table reads any source.
+// The parameters that change while a node runs, as dynamic_reconfigure's generated config holds them
+// (cfg/DeskewScan.cfg, cfg/DeskewCloud.cfg): read by name, as the parameter table reads any source.
 #pragma once
 
 #include <boost/any.hpp>
 #include <string>
 
-#include "lidar_deskew/DeskewConfig.h"  // generated from cfg/Deskew.cfg
+#include "lidar_deskew/DeskewCloudConfig.h"  // generated from cfg/DeskewCloud.cfg
+#include "lidar_deskew/DeskewScanConfig.h"   // generated from cfg/DeskewScan.cfg
 #include "lidar_deskew/core/types.h"
 #include "lidar_deskew/ros/param_source.h"
 
 namespace lidar_deskew::node {
 
-/// A generated dynamic_reconfigure config as a parameter source: its parameters by name.
+/// A generated dynamic_reconfigure config (DeskewScanConfig or DeskewCloudConfig) as a parameter
+/// source: its parameters by name; the ones it does not offer are absent.
+template <class Config>
 class ConfigParams final : public ros_adapter::ParamSource {
  public:
-  explicit ConfigParams(const DeskewConfig& config) : config_(config) {}
+  explicit ConfigParams(const Config& config) : config_(config) {}
   bool get(const std::string& name, std::string& value) const override { return read(name, value); }
   bool get(const std::string& name, double& value) const override { return read(name, value); }
   bool get(const std::string& name, int& value) const override { return read(name, value); }
@@ -23,8 +26,8 @@ class ConfigParams final : public ros_adapter::ParamSource {
  private:
   template <typename T>
   bool read(const std::string& name, T& value) const {
-    for (const DeskewConfig::AbstractParamDescriptionConstPtr& description :
-         DeskewConfig::__getParamDescriptions__()) {
+    for (const typename Config::AbstractParamDescriptionConstPtr& description :
+         Config::__getParamDescriptions__()) {
       if (description->name != name)
         continue;
       boost::any any;
@@ -37,7 +40,7 @@ class ConfigParams final : public ros_adapter::ParamSource {
     }
     return false;
   }
-  const DeskewConfig& config_;
+  const Config& config_;
 };
 
 }  // namespace lidar_deskew::node

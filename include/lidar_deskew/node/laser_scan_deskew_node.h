@@ -28,10 +28,11 @@ namespace lidar_deskew::node {
 /// of PointXYZITI), for clouds `<points>_deskewed` (PointCloud2, the input's layout), all in the input's
 /// frame, stamped at the reference time. A scan waits, without blocking any
 /// callback, until tf covers its last beam, and is processed from the tf callback that brings it.
-/// The parameters marked reconfigurable (DeskewParams::reconfigurableNames) may change while it runs,
-/// through dynamic_reconfigure (cfg/Deskew.cfg). Scans: a live check that the timing fits
-/// (core::TimingCheck) runs on corrected scans while its CPU time stays within 5 % of the node's
-/// callbacks', and reports on /diagnostics ("<name>: timing") once the robot has turned enough.
+/// The reconfigurable parameters its input reads (DeskewParams::reconfigurableNames(Input)) may change
+/// while it runs, through dynamic_reconfigure (cfg/DeskewScan.cfg, cfg/DeskewCloud.cfg); a change it
+/// cannot take is refused, logged, and the values in force are sent back to the client. Scans: a live check
+/// that the timing fits (core::TimingCheck) runs on corrected scans while its CPU time stays within 5 % of
+/// the node's callbacks', and reports on /diagnostics ("<name>: timing") once the robot has turned enough.
 /// Thread-safe: callbacks may come from several threads.
 template <class Processor>
 class DeskewNode {
@@ -73,7 +74,7 @@ class DeskewNode {
   void advertiseOutputs(const std::string& input, const ros::SubscriberStatusCallback& connect);
   void tfCallback(const tf2_msgs::TFMessage::ConstPtr& message, bool is_static);
   void timerCallback(const ros::WallTimerEvent& event);
-  struct Reconfigure;  // the dynamic_reconfigure server, of the generated lidar_deskew::DeskewConfig
+  struct Reconfigure;  // the dynamic_reconfigure server, of DeskewScanConfig or DeskewCloudConfig
 
   // All below run with mutex_ held.
   void publish(const typename Pipeline::Result& result);

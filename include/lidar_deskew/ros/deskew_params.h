@@ -18,6 +18,10 @@ namespace lidar_deskew::ros_adapter {
 /// What to do with a scan whose sweep tf does not cover within tf_timeout.
 enum class OnTfFailure { kDrop, kPassThrough };
 
+/// The input a parameter applies to: both, LaserScans only (the scan node, deskew_bag's scans) or
+/// PointCloud2s only.
+enum class Input { kBoth, kScans, kClouds };
+
 /// One parameter as users see it: the one place its name, type, default, unit and bounds are written.
 /// config/deskew.yaml and the docs' table are checked against these by test_deskew_params.
 struct ParamSpec {
@@ -30,8 +34,12 @@ struct ParamSpec {
   bool min_exclusive;
   const char* choices;  ///< strings with fixed values, e.g. "start|middle|end"; "" for free text
   bool live_only;       ///< means nothing offline: deskew_bag refuses it
-  bool reconfigurable;  ///< may change while the node runs (dynamic_reconfigure, cfg/Deskew.cfg)
+  bool reconfigurable;  ///< may change while the node runs (dynamic_reconfigure, cfg/Deskew*.cfg)
   const char* meaning;
+  Input input = Input::kBoth;  ///< the input it applies to
+
+  /// Whether the node of `node` (kScans or kClouds) reads it.
+  bool readBy(Input node) const { return input == Input::kBoth || input == node; }
 
   /// The allowed values as the docs' table shows them: "[0, 60]", "(0, 3600]", "start, end", "".
   std::string bounds() const;
@@ -80,6 +88,8 @@ struct DeskewParams {
   static const std::vector<std::string>& liveOnlyNames();
   /// The names of the parameters that may change while the node runs (dynamic_reconfigure).
   static const std::vector<std::string>& reconfigurableNames();
+  /// Of them, those the node of `node` (kScans or kClouds) reads: what its dynamic_reconfigure offers.
+  static std::vector<std::string> reconfigurableNames(Input node);
   /// Throws core::InvalidInput naming the first parameter outside its bounds (specs()).
   void validate() const;
   /// Of `given` names, those that are no parameter, each with the closest parameter name when one is
