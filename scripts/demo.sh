@@ -28,8 +28,10 @@ status=0
   --output "$out/neato_timing.yaml" || status=$?
 timing=(--params "$out/neato_timing.yaml")
 if [ "$status" -eq 3 ]; then
-  echo "(too little turning to tell: corrected with the message's own timing)"
+  echo "(the recording cannot tell the timing: corrected with the message's own)"
   timing=()
+elif [ "$status" -eq 4 ]; then
+  echo "(the beam order and period told, the offset not: corrected with those and the message's offset)"
 elif [ "$status" -ne 0 ]; then
   exit "$status"
 fi
