@@ -12,6 +12,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <cstring>
 
@@ -95,9 +96,9 @@ void throughThePipeline(const sensor_msgs::LaserScan::ConstPtr& fuzzed) {
   };
   // Its mount, unless its frame is one of the tree's (a frame tf would then have twice).
   const std::string frame = ros_adapter::normalizedFrame(fuzzed->header.frame_id);
-  pipeline.addTransforms({transform("base_link", "laser", stamp(0.0), 0.1)}, true, 0.0);
+  pipeline.addTransforms({transform("base_link", "laser", stamp(0.0), 0.1)}, true, -4.0);
   if (!frame.empty() && frame != "laser" && frame != "base_link" && frame != "odom")
-    pipeline.addTransforms({transform("base_link", frame, stamp(0.0), 0.2)}, true, 0.0);
+    pipeline.addTransforms({transform("base_link", frame, stamp(0.0), 0.2)}, true, -4.0);
   double tf_until = -4.0;
   const auto tfUntil = [&](double t) {
     for (; tf_until + 0.02 <= t + 1e-9; tf_until += 0.02) {
@@ -137,8 +138,12 @@ void throughThePipeline(const sensor_msgs::LaserScan::ConstPtr& fuzzed) {
   const auto served = [&](std::uint64_t id) {
     return std::find(corrected.begin(), corrected.end(), id) != corrected.end();
   };
-  if (!tf_at_its_stamp && (!served(1) || !served(3) || c.time_jumps != 0))
+  if (!tf_at_its_stamp && (!served(1) || !served(3) || c.time_jumps != 0)) {
+    std::fprintf(stderr, "good scans served: %d %d; time jumps %llu; fuzzed stamp %u.%09u frame '%s'\n",
+                 served(1), served(3), static_cast<unsigned long long>(c.time_jumps),
+                 fuzzed->header.stamp.sec, fuzzed->header.stamp.nsec, fuzzed->header.frame_id.c_str());
     std::abort();
+  }
 }
 
 }  // namespace
