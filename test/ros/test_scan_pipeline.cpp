@@ -384,7 +384,7 @@ TEST(ScanPipeline, StampsTfCannotTakeAreDroppedAndTheStreamGoesOn) {
   for (const auto& [stamp, named] : stamps) {
     run.scan(t);
     run.pipeline.add(run.drive.scanAt(t + 0.025), t + 0.05);  // waits for its tf
-    run.pipeline.add(bad(t + 0.03, stamp), t + 0.05);  // judged once it is at the head
+    run.pipeline.add(bad(t + 0.03, stamp), t + 0.05);         // judged once it is at the head
     run.tfUntil(t + 0.075);
     EXPECT_TRUE(holds(lastSaid(run, PipelineEvent::kMalformed), named));
     t += 0.075;
