@@ -422,11 +422,17 @@ void process(const sensor_msgs::PointCloud2::Ptr& cloud, const ros_adapter::Desk
     transform.child_frame_id = "base_link";
     transform.header.stamp = ros_adapter::toRosTime(time);
     transform.transform = ros_adapter::toTransform(pose);
-    // tf2 prunes its cache at stamp + cache time, which throws past ros::Time's end (tf2's limit, noted
-    // in docs/FAULTS.md): no tf there.
-    if (time < kRosTimeEnd - 201 * kSecond)
-      feed.add(transform, false);
+    // Near ros::Time's end tf2 throws on adding it ("Time is out of dual 32-bit range"): TfFeed
+    // refuses it and goes on.
+    feed.add(transform, false);
   }
+  // Whether and why tf covers the sweep: answered, never thrown, whatever the stamps.
+  std::string why;
+  const ros_adapter::Coverage coverage_now = feed.coverage(first, last, &why);
+  if (coverage_now == ros_adapter::Coverage::kNever && why.empty())
+    std::abort();
+  if (coverage_now != ros_adapter::Coverage::kCovered && feed.whyNotCovered(first, last, last).empty())
+    std::abort();
   try {
     const ros_adapter::CloudOutputs outputs = use_tf ? processor.correct(prepared, mount, feed.motion())
                                                      : processor.correct(prepared, mount, samples);

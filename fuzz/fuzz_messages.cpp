@@ -2,16 +2,22 @@
 // sizes, NaN/inf fields, mismatched arrays, any stamp), then checked, timed, corrected and turned into
 // the output messages by ScanProcessor, as the node and deskew_bag do. Both output clouds (corrected and
 // pass-through) then go through the PointCloud2 conversion subscribers see: serialized by pcl_ros,
-// read back as sensor_msgs/PointCloud2, layout and every value checked.
+// read back as sensor_msgs/PointCloud2, layout and every value checked. And the scan goes through the
+// whole pipeline between two good scans, with a real tf2 buffer (stale tf, a transform at its stamp):
+// it never throws and never costs the good ones.
 #include <fuzzer/FuzzedDataProvider.h>
 #include <ros/serialization.h>
 #include <sensor_msgs/PointCloud2.h>
 #include <sensor_msgs/point_cloud2_iterator.h>
 
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <cstring>
 
 #include "lidar_deskew/ros/conversions.h"
+#include "lidar_deskew/ros/scan_pipeline.h"
 #include "lidar_deskew/ros/scan_processor.h"
 
 using namespace lidar_deskew;
@@ -61,6 +67,85 @@ void checkCloudOnTheWire(const ros_adapter::DeskewedCloud& cloud) {
   }
 }
 
+/// The fuzzed scan in a stream, through the pipeline of the node and deskew_bag with a real tf2 buffer:
+/// a good scan before it and one after it, tf at 50 Hz covering both, and (by the scan's seq) a stray
+/// publisher's stale tf at 2 Hz, or a transform stamped with the fuzzed scan's stamp. Nothing may
+/// throw; every scan is accounted for once; with tf left alone both good scans are corrected whatever
+/// the fuzzed one holds (its stamp 0, in 2105, anything: it never holds the stream back).
+void throughThePipeline(const sensor_msgs::LaserScan::ConstPtr& fuzzed) {
+  const bool stray = (fuzzed->header.seq & 1u) != 0;
+  const bool tf_at_its_stamp = (fuzzed->header.seq & 2u) != 0;
+  std::vector<std::uint64_t> corrected;
+  ros_adapter::ScanPipeline pipeline(
+      ros_adapter::DeskewParams(),
+      [&](const ros_adapter::PipelineResult& result) {
+        if (result.corrected)
+          corrected.push_back(result.id);
+      },
+      [](ros_adapter::PipelineEvent, const std::string&) {});
+  const core::TimeNs epoch = 1'700'000'000'000'000'000;
+  const auto stamp = [&](double t) { return ros_adapter::toRosTime(epoch + core::secondsToNs(t)); };
+  const auto transform = [&](const std::string& parent, const std::string& child, const ros::Time& at,
+                             double x) {
+    geometry_msgs::TransformStamped link;
+    link.header.frame_id = parent;
+    link.header.stamp = at;
+    link.child_frame_id = child;
+    link.transform = ros_adapter::toTransform(mrpt::poses::CPose3D(x, 0.1 * x, 0.0, 0.3 * x, 0.0, 0.0));
+    return link;
+  };
+  // Its mount, unless its frame is one of the tree's (a frame tf would then have twice).
+  const std::string frame = ros_adapter::normalizedFrame(fuzzed->header.frame_id);
+  pipeline.addTransforms({transform("base_link", "laser", stamp(0.0), 0.1)}, true, -4.0);
+  if (!frame.empty() && frame != "laser" && frame != "base_link" && frame != "odom")
+    pipeline.addTransforms({transform("base_link", frame, stamp(0.0), 0.2)}, true, -4.0);
+  double tf_until = -4.0;
+  const auto tfUntil = [&](double t) {
+    for (; tf_until + 0.02 <= t + 1e-9; tf_until += 0.02) {
+      const double at = tf_until + 0.02;
+      pipeline.addTransforms({transform("odom", "base_link", stamp(at), at)}, false, at);
+      if (stray && std::fmod(at + 4.0 + 1e-9, 0.5) < 0.02)
+        pipeline.addTransforms({transform("odom", "base_link", stamp(at - 3.0), 9.0)}, false, at);
+    }
+  };
+  const auto goodScan = [&](double t) {
+    auto scan = boost::make_shared<sensor_msgs::LaserScan>();
+    scan->header.stamp = stamp(t);
+    scan->header.frame_id = "laser";
+    scan->angle_min = -1.0f;
+    scan->angle_increment = 0.01f;
+    scan->time_increment = 0.0001f;
+    scan->range_min = 0.1f;
+    scan->range_max = 10.0f;
+    scan->ranges.assign(200, 2.0f);
+    return scan;
+  };
+  tfUntil(0.25);
+  pipeline.add(goodScan(0.2), 0.25, 1);
+  pipeline.add(fuzzed, 0.26, 2);
+  if (tf_at_its_stamp)
+    pipeline.addTransforms({transform("odom", "base_link", fuzzed->header.stamp, 1.0)}, false, 0.27);
+  tfUntil(0.6);
+  pipeline.add(goodScan(0.5), 0.55, 3);
+  tfUntil(0.7);
+  pipeline.expire(5.0);
+  pipeline.flush();
+  const ros_adapter::PipelineCounters& c = pipeline.counters();
+  if (pipeline.waiting() != 0 || c.received != 3 ||
+      c.published + c.passed_through + c.dropped_invalid + c.dropped_tf + c.dropped_mount + c.dropped_queue !=
+          3)
+    std::abort();
+  const auto served = [&](std::uint64_t id) {
+    return std::find(corrected.begin(), corrected.end(), id) != corrected.end();
+  };
+  if (!tf_at_its_stamp && (!served(1) || !served(3) || c.time_jumps != 0)) {
+    std::fprintf(stderr, "good scans served: %d %d; time jumps %llu; fuzzed stamp %u.%09u frame '%s'\n",
+                 served(1), served(3), static_cast<unsigned long long>(c.time_jumps),
+                 fuzzed->header.stamp.sec, fuzzed->header.stamp.nsec, fuzzed->header.frame_id.c_str());
+    std::abort();
+  }
+}
+
 }  // namespace
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* bytes, size_t size) {
@@ -105,6 +190,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* bytes, size_t size) {
   }
   if (scan->ranges.size() > 100000)
     return 0;  // keep runs short; the size limit itself is tested in test_timing
+  throughThePipeline(scan);
   // A base driving and turning around the scan's stamp (when the stamp allows it).
   core::PoseSamples motion;
   const core::TimeNs stamp = static_cast<core::TimeNs>(scan->header.stamp.toNSec());

@@ -76,6 +76,8 @@ Calibration calibrateBag(const CalibrateOptions& options) {
   }
   const std::unique_ptr<ros_adapter::TfFeed> tf =
       eval::loadRecordedTf(bag, options.input, options.params.fixed_frame, options.params.base_frame);
+  // Stamps tf cannot take (0, far from tf's time line: uninitialised) are left out (issue 23).
+  eval::dropStampsTfCannotTake(scans, *tf);
   std::string error;
   const auto mount = tf->mount(calibration.frame, error);
   if (!mount)

@@ -3,6 +3,8 @@
 #include <rosbag/view.h>
 #include <tf2_msgs/TFMessage.h>
 
+#include <algorithm>
+
 namespace lidar_deskew::eval {
 
 std::unique_ptr<ros_adapter::TfFeed> loadRecordedTf(rosbag::Bag& bag, const std::string& bag_path,
@@ -29,6 +31,17 @@ std::unique_ptr<ros_adapter::TfFeed> loadRecordedTf(rosbag::Bag& bag, const std:
                              feed->buffer().allFramesAsString());
   }
   return feed;
+}
+
+std::size_t dropStampsTfCannotTake(std::vector<core::PlanarScan>& scans, const ros_adapter::TfFeed& tf) {
+  const std::size_t before = scans.size();
+  scans.erase(std::remove_if(scans.begin(), scans.end(),
+                             [&tf](const core::PlanarScan& scan) {
+                               return scan.stamp == 0 ||
+                                      tf.coverage(scan.stamp, scan.stamp) == ros_adapter::Coverage::kNever;
+                             }),
+              scans.end());
+  return before - scans.size();
 }
 
 }  // namespace lidar_deskew::eval

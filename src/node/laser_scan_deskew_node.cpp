@@ -50,6 +50,8 @@ LogPolicy policyOf(PipelineEvent event) {
       return {Level::Info, 5.0};         // a mount moving on /tf changes often
     case PipelineEvent::kTimeFallback:   // reported once by the pipeline
     case PipelineEvent::kStaticIgnored:  // once per frame
+    case PipelineEvent::kTwoParents:     // once per frame
+    case PipelineEvent::kStaleTf:        // once
     case PipelineEvent::kTimeJump:
       return {Level::Warn, 0.0};
     case PipelineEvent::kMountFirst:
@@ -167,7 +169,8 @@ DeskewNode<Processor>::DeskewNode(ros::NodeHandle nh, ros::NodeHandle private_nh
   private_nh_.setParam("diagnostic_period", params_.diagnostics_period);  // read by the Updater
   diagnostics_ = std::make_unique<diagnostic_updater::Updater>(nh_, private_nh_, name_);
   diagnostics_->setHardwareID("none");
-  diagnostics_->add(name_ + ": deskew", this, &DeskewNode::produceDiagnostics);
+  // The Updater puts the node's name before each status name itself.
+  diagnostics_->add("deskew", this, &DeskewNode::produceDiagnostics);
   if constexpr (std::is_same_v<Processor, ros_adapter::ScanProcessor>) {
     timing_check_ = std::make_unique<core::TimingCheck>(params_.timing);
     pipeline_.setCorrected([this](const typename Processor::Prepared& prepared,
@@ -400,9 +403,9 @@ void DeskewNode<Processor>::timerCallback(const ros::WallTimerEvent& /*event*/) 
   // it calls the tasks, which take mutex_. Only this timer adds or removes the task.
   if (timing_known && *timing_known != timing_reported_) {
     if (*timing_known)
-      diagnostics_->add(name_ + ": timing", this, &DeskewNode::produceTimingDiagnostics);
+      diagnostics_->add("timing", this, &DeskewNode::produceTimingDiagnostics);
     else
-      diagnostics_->removeByName(name_ + ": timing");
+      diagnostics_->removeByName("timing");
     timing_reported_ = *timing_known;
   }
   // On the wall clock: the Updater's own schedule is in ROS time, which stands still with a paused
@@ -415,6 +418,9 @@ template <class Processor>
 void DeskewNode<Processor>::report(PipelineEvent event, const std::string& text) {
   const LogPolicy policy = policyOf(event);
   const ros::WallTime now = ros::WallTime::now();
+  if (event == PipelineEvent::kMalformed || event == PipelineEvent::kTfFailure ||
+      event == PipelineEvent::kMountMissing || event == PipelineEvent::kQueueFull)
+    last_drop_ = text;  // every one, throttled or not: /diagnostics shows the newest
   const auto last = last_report_.find(event);
   if (policy.period > 0.0 && last != last_report_.end() && (now - last->second).toSec() < policy.period)
     return;
@@ -510,12 +516,9 @@ void DeskewNode<Processor>::produceDiagnostics(diagnostic_updater::DiagnosticSta
       counters.dropped_invalid + counters.dropped_tf + counters.dropped_mount + counters.dropped_queue;
   const std::uint64_t dropped_before =
       was.dropped_invalid + was.dropped_tf + was.dropped_mount + was.dropped_queue;
-  if (dropped > dropped_before) {
-    status.summary(diagnostic_msgs::DiagnosticStatus::WARN,
-                   "dropping " + std::string(Processor::kNoun) + "s");
-  } else if (counters.passed_through > was.passed_through) {
-    status.summary(diagnostic_msgs::DiagnosticStatus::WARN,
-                   "passing " + std::string(Processor::kNoun) + "s through uncorrected");
+  // The summary names the newest drop's cause (its whole text is "last drop").
+  if (dropped > dropped_before || counters.passed_through > was.passed_through) {
+    status.summary(diagnostic_msgs::DiagnosticStatus::WARN, last_drop_);
   } else {
     status.summary(diagnostic_msgs::DiagnosticStatus::OK, "ok");
   }
@@ -524,6 +527,7 @@ void DeskewNode<Processor>::produceDiagnostics(diagnostic_updater::DiagnosticSta
   for (const auto& [name, value] : ros_adapter::namedCounters(counters))
     status.add(name, value);
   status.add("waiting " + std::string(Processor::kNoun) + "s", pipeline_.waiting());
+  status.add("last drop", last_drop_.empty() ? std::string("none") : last_drop_);
   const double done = std::max<std::uint64_t>(1, counters.published);
   status.add("tf wait mean [ms]", 1e3 * counters.tf_wait_total / done);
   status.add("tf wait max [ms]", 1e3 * counters.tf_wait_max);

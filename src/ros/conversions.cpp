@@ -63,9 +63,11 @@ std::string describePose(const mrpt::poses::CPose3D& pose) {
 }
 
 bool samePose(const mrpt::poses::CPose3D& a, const mrpt::poses::CPose3D& b) {
-  const auto difference = a.getHomogeneousMatrixVal<mrpt::math::CMatrixDouble44>().asEigen() -
-                          b.getHomogeneousMatrixVal<mrpt::math::CMatrixDouble44>().asEigen();
-  return difference.cwiseAbs().maxCoeff() <= 1e-9;
+  // The matrices held here: an `auto` Eigen expression of the temporaries read them after they were
+  // gone (ASan in fuzz_messages, through TfFeed::mount).
+  const auto matrix_a = a.getHomogeneousMatrixVal<mrpt::math::CMatrixDouble44>();
+  const auto matrix_b = b.getHomogeneousMatrixVal<mrpt::math::CMatrixDouble44>();
+  return (matrix_a.asEigen() - matrix_b.asEigen()).cwiseAbs().maxCoeff() <= 1e-9;
 }
 
 }  // namespace lidar_deskew::ros_adapter

@@ -282,22 +282,27 @@ DeskewParams DeskewParams::load(const ParamSource& source, const DeskewParams& b
 
 std::vector<std::string> DeskewParams::unknownNames(const std::vector<std::string>& given) {
   std::vector<std::string> unknown;
+  const auto& known = names();
   for (const std::string& name : given) {
-    const auto& known = names();
     if (std::find(known.begin(), known.end(), name) != known.end())
       continue;
-    std::string closest;
-    std::size_t best = 3;  // at most two edits make a misspelling
-    for (const std::string& candidate : known) {
-      const std::size_t distance = editDistance(name, candidate);
-      if (distance < best) {
-        best = distance;
-        closest = candidate;
-      }
-    }
+    const std::string closest = closestName(name, known);
     unknown.push_back(closest.empty() ? name : name + " (did you mean " + closest + "?)");
   }
   return unknown;
+}
+
+std::string closestName(const std::string& name, const std::vector<std::string>& candidates) {
+  std::string closest;
+  std::size_t best = 3;  // at most two edits make a misspelling
+  for (const std::string& candidate : candidates) {
+    const std::size_t distance = editDistance(name, candidate);
+    if (distance < best) {
+      best = distance;
+      closest = candidate;
+    }
+  }
+  return closest;
 }
 
 void DeskewParams::validate() const {

@@ -56,6 +56,7 @@ std::vector<std::pair<std::string, std::uint64_t>> namedCounters(const PipelineC
           {"mount changes", c.mount_changes},
           {"time jumps", c.time_jumps},
           {"statics ignored", c.statics_ignored},
+          {"stale tf ignored", c.stale_tf},
           {"lost upstream", c.lost_upstream}};
 }
 
@@ -81,6 +82,10 @@ std::string toString(PipelineEvent event) {
       return "time jump";
     case PipelineEvent::kBadTransform:
       return "bad transform";
+    case PipelineEvent::kStaleTf:
+      return "stale tf";
+    case PipelineEvent::kTwoParents:
+      return "two parents";
   }
   return "event";
 }
@@ -155,6 +160,13 @@ void SweepPipeline<Processor>::onTfEvent(TfEvent event, const std::string& text)
     case TfEvent::kBadTransform:
       report_(PipelineEvent::kBadTransform, text);
       break;
+    case TfEvent::kStaleIgnored:
+      if (counters_.stale_tf++ == 0)  // once; the count is in the counters
+        report_(PipelineEvent::kStaleTf, text + " (counted as 'stale tf ignored'; the tf cache is kept)");
+      break;
+    case TfEvent::kTwoParents:
+      report_(PipelineEvent::kTwoParents, text);
+      break;
     case TfEvent::kMountFirst:
       report_(PipelineEvent::kMountFirst, "mount " + text);
       break;
@@ -203,14 +215,10 @@ void SweepPipeline<Processor>::failWaiting(const std::string& reason) {
   std::deque<Pending> waiting;
   waiting.swap(pending_);
   for (const Pending& pending : waiting) {
-    if (!tf_.mountKnown(pending.frame)) {
-      ++counters_.dropped_mount;
-      report_(PipelineEvent::kMountMissing, "dropping " + std::string(Processor::kNoun) + ": no transform " +
-                                                tf_.baseFrame() + " -> " + pending.frame +
-                                                " (the laser mount)");
-    } else {
-      fail(pending, reason);
-    }
+    if (!tf_.mountKnown(pending.frame))
+      dropForMount(pending, "");
+    else
+      fail(pending, reason.empty() ? whyNotCovered(pending) : reason);
   }
 }
 
@@ -246,6 +254,10 @@ void SweepPipeline<Processor>::add(const typename Message::ConstPtr& message, do
     return;
   }
   pending.frame = normalizedFrame(message->header.frame_id);
+  if (message->header.stamp.isZero()) {
+    dropInvalid(pending, "header.stamp is 0 (unset: the driver did not stamp it)");
+    return;
+  }
   const char* fallback = pending.prepared.timingFallback();
   if (fallback != nullptr && counters_.time_fallbacks++ == 0)
     report_(PipelineEvent::kTimeFallback, std::string(fallback) + " (counted)");
@@ -258,12 +270,6 @@ void SweepPipeline<Processor>::add(const typename Message::ConstPtr& message, do
     pending_.pop_front();
   }
   serveReady(now);
-}
-
-template <class Processor>
-bool SweepPipeline<Processor>::ready(const Pending& pending) const {
-  // The mount may arrive after the motion (another connection): wait for both.
-  return tf_.mountKnown(pending.frame) && tf_.covers(pending.prepared.earliest(), pending.prepared.latest());
 }
 
 template <class Processor>
@@ -283,12 +289,49 @@ template <class Processor>
 void SweepPipeline<Processor>::serveReady(double now) {
   observeClock(now);
   while (!pending_.empty()) {
-    if (!ready(pending_.front()))
-      return;  // tf only grows: later scans wait too
+    if (tf_.jumpPending())
+      return;  // tf went back: a time jump or stale tf, told by the transforms that follow
+    const Pending& front = pending_.front();
+    std::string never;
+    const Coverage coverage = tf_.coverage(front.prepared.earliest(), front.prepared.latest(), &never);
+    // The mount may arrive after the motion (another connection): wait for both. tf only grows: later
+    // scans wait too.
+    if (coverage == Coverage::kNotYet || (coverage == Coverage::kCovered && !tf_.mountKnown(front.frame)))
+      return;
     const Pending next = std::move(pending_.front());
     pending_.pop_front();
-    correct(next, false, now);
+    if (coverage == Coverage::kNever)
+      dropInvalid(next, never);  // tf cannot take its times: never at the head of the queue
+    else
+      correct(next, false, now);
   }
+}
+
+template <class Processor>
+std::string SweepPipeline<Processor>::whyNotCovered(const Pending& pending) const {
+  if (tf_.jumpPending())
+    return "tf " + tf_.fixedFrame() + " -> " + tf_.baseFrame() +
+           " went back in time: a time jump or stale tf, not yet told apart";
+  return tf_.whyNotCovered(pending.prepared.earliest(), pending.prepared.latest(),
+                           core::secondsToNs(pending.arrival));
+}
+
+template <class Processor>
+void SweepPipeline<Processor>::dropInvalid(const Pending& pending, const std::string& why) {
+  ++counters_.dropped_invalid;
+  report_(PipelineEvent::kMalformed,
+          "dropping " + std::string(Processor::kNoun) + " (frame '" + pending.frame + "', stamp " +
+              std::to_string(pending.prepared.message->header.stamp.toSec()) + "): invalid stamp: " + why);
+}
+
+template <class Processor>
+void SweepPipeline<Processor>::dropForMount(const Pending& pending, const std::string& error) {
+  ++counters_.dropped_mount;
+  report_(PipelineEvent::kMountMissing,
+          "dropping " + std::string(Processor::kNoun) + " at " +
+              std::to_string(pending.prepared.message->header.stamp.toSec()) + ": no transform " +
+              tf_.baseFrame() + " -> " + pending.frame +
+              " (the laser mount): " + (error.empty() ? tf_.whyNoMount(pending.frame) : error));
 }
 
 template <class Processor>
@@ -301,12 +344,10 @@ void SweepPipeline<Processor>::expire(double now) {
       // The wait is over (tf_timeout, the latency budget): extrapolate rather than fail.
       correct(expired, true, now);
     } else if (!tf_.mountKnown(expired.frame)) {
-      ++counters_.dropped_mount;
-      report_(PipelineEvent::kMountMissing, "dropping " + std::string(Processor::kNoun) + ": no transform " +
-                                                tf_.baseFrame() + " -> " + expired.frame +
-                                                " (the laser mount) within tf_timeout");
+      dropForMount(expired, "");
     } else {
-      fail(expired, "tf did not cover the sweep within tf_timeout");
+      fail(expired,
+           whyNotCovered(expired) + " (waited tf_timeout, " + formatNumber(params_.tf_timeout) + " s)");
     }
     serveReady(now);  // scans behind an expired one may be ready: serve them before they expire
   }
@@ -314,7 +355,7 @@ void SweepPipeline<Processor>::expire(double now) {
 
 template <class Processor>
 void SweepPipeline<Processor>::flush() {
-  failWaiting("tf does not cover the sweep");
+  failWaiting("");  // each with its cause
 }
 
 template <class Processor>
@@ -323,10 +364,7 @@ void SweepPipeline<Processor>::correct(const Pending& pending, bool extrapolate,
   std::string error;
   const std::optional<mrpt::poses::CPose3D> mount = tf_.mount(pending.frame, error);
   if (!mount) {
-    ++counters_.dropped_mount;
-    report_(PipelineEvent::kMountMissing, "dropping " + std::string(Processor::kNoun) + ": no transform " +
-                                              tf_.baseFrame() + " -> " + pending.frame +
-                                              " for the laser mount: " + error);
+    dropForMount(pending, error);
     return;
   }
   Result result;
@@ -366,13 +404,13 @@ void SweepPipeline<Processor>::fail(const Pending& pending, const std::string& r
   const std::string stamp = std::to_string(pending.prepared.message->header.stamp.toSec());
   if (params_.on_tf_failure == OnTfFailure::kDrop) {
     ++counters_.dropped_tf;
-    report_(PipelineEvent::kTfFailure,
-            "dropping " + std::string(Processor::kNoun) + " at " + stamp + ": " + reason);
+    report_(PipelineEvent::kTfFailure, "dropping " + std::string(Processor::kNoun) + " at " + stamp +
+                                           " (frame " + pending.frame + "): " + reason);
     return;
   }
   ++counters_.passed_through;
-  report_(PipelineEvent::kTfFailure,
-          "passing " + std::string(Processor::kNoun) + " at " + stamp + " through uncorrected: " + reason);
+  report_(PipelineEvent::kTfFailure, "passing " + std::string(Processor::kNoun) + " at " + stamp +
+                                         " (frame " + pending.frame + ") through uncorrected: " + reason);
   Result result;
   result.outputs = processor_.passThrough(pending.prepared);
   result.id = pending.id;

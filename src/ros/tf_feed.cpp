@@ -4,14 +4,21 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <iterator>
 
 #include "lidar_deskew/ros/conversions.h"
+#include "lidar_deskew/ros/deskew_params.h"
 
 namespace lidar_deskew::ros_adapter {
 namespace {
 
 /// A jump backwards of the chain's stamps larger than this (bag loop, /clock reset) clears the cache.
 constexpr core::TimeNs kTimeJumpNs = 1'000'000'000;
+
+/// [ns] A sweep ending after its arrival by less than this (time_offset's range) was stamped late.
+constexpr core::TimeNs kLateStampNs = 10'000'000'000;
 
 bool finite(const geometry_msgs::Transform& t) {
   return std::isfinite(t.translation.x) && std::isfinite(t.translation.y) && std::isfinite(t.translation.z) &&
@@ -56,7 +63,12 @@ bool TfFeed::add(const geometry_msgs::TransformStamped& transform_in, bool is_st
       }
       return true;
     }
-    if (!buffer_->setTransform(transform, "tf_static", true)) {
+    bool taken = false;
+    try {
+      taken = buffer_->setTransform(transform, "tf_static", true);
+    } catch (const std::exception&) {
+    }
+    if (!taken) {
       notify(TfEvent::kBadTransform, "tf2 refused /tf_static " + parent + " -> " + child);
       return true;
     }
@@ -65,7 +77,6 @@ bool TfFeed::add(const geometry_msgs::TransformStamped& transform_in, bool is_st
     return true;
   }
 
-  bool in_time = true;
   if (moving_.insert(child).second) {
     chain_ = chainChildren();
     const auto kept = statics_.find(child);
@@ -79,37 +90,97 @@ bool TfFeed::add(const geometry_msgs::TransformStamped& transform_in, bool is_st
     }
   }
   setParent(child, parent);
-  const bool on_chain = chain_.count(child) > 0;
   const core::TimeNs stamp = toNs(transform.header.stamp);
+  noteDynamicParent(child, parent, stamp);
+  const bool on_chain = chain_.count(child) > 0;
   if (on_chain) {
     // Each link against its own newest stamp: links of one chain may lag or lead each other by more
     // than a second (a localiser future-dating map -> odom), and that is no jump.
-    core::TimeNs& newest = newest_link_stamps_[child];
-    if (newest != 0 && stamp + kTimeJumpNs < newest) {
-      notify(TfEvent::kTimeJump, "time went backwards (" + parent + " -> " + child + ", " +
-                                     std::to_string(core::nsToSeconds(newest - stamp)) +
-                                     " s): clearing the tf cache");
-      forgetMotion();
-      in_time = false;
-    }
-    newest_link_stamps_[child] = std::max(newest_link_stamps_[child], stamp);
+    const auto newest = newest_link_stamps_.find(child);
+    if (newest != newest_link_stamps_.end() && stamp + kTimeJumpNs < newest->second)
+      return holdBackward(transform);
+    if (backward_.count(child) > 0)
+      dropStale(child, stamp);
+    core::TimeNs& newest_stamp = newest_link_stamps_[child];
+    newest_stamp = std::max(newest_stamp, stamp);
   }
-  if (!buffer_->setTransform(transform, "tf", false)) {
-    notify(TfEvent::kBadTransform, "tf2 refused /tf " + parent + " -> " + child);
-    return in_time;
+  bool taken = false;
+  std::string refusal;
+  try {
+    taken = buffer_->setTransform(transform, "tf", false);
+  } catch (const std::exception& error) {  // a stamp within the cache time of ros::Time's end (2106)
+    refusal = std::string(": ") + error.what();
+  }
+  if (!taken) {
+    notify(TfEvent::kBadTransform, "tf2 refused /tf " + parent + " -> " + child + " at " +
+                                       std::to_string(transform.header.stamp.toSec()) + refusal);
+    return true;
   }
   if (on_chain) {
     motion_.addSampleTime(stamp);
     // One dynamic link straight from fixed to base: its stamps are all of the chain's samples.
     motion_.setSingleLink(chain_.size() == 1 && parent == fixed_frame_ && child == base_frame_);
   }
-  return in_time;
+  return true;
+}
+
+bool TfFeed::holdBackward(const geometry_msgs::TransformStamped& transform) {
+  const std::string& child = transform.child_frame_id;
+  held_.push_back(transform);
+  const int in_a_row = ++backward_[child];
+  if (in_a_row < kJumpConfirmations)
+    return true;  // undecided: the old time line may still go on (a stray publisher of stale tf)
+  const core::TimeNs back = newest_link_stamps_[child] - toNs(transform.header.stamp);
+  notify(TfEvent::kTimeJump, "time went backwards (" + transform.header.frame_id + " -> " + child + ", " +
+                                 formatNumber(core::nsToSeconds(back)) + " s, " + std::to_string(in_a_row) +
+                                 " transforms in a row): clearing the tf cache");
+  forgetMotion();  // takes the held transforms again: they start the new time line
+  return false;
+}
+
+void TfFeed::dropStale(const std::string& child, core::TimeNs newest) {
+  std::vector<geometry_msgs::TransformStamped> stale;
+  const auto of_child = [&](const geometry_msgs::TransformStamped& t) { return t.child_frame_id == child; };
+  std::copy_if(held_.begin(), held_.end(), std::back_inserter(stale), of_child);
+  held_.erase(std::remove_if(held_.begin(), held_.end(), of_child), held_.end());
+  backward_.erase(child);
+  for (const geometry_msgs::TransformStamped& transform : stale) {
+    notify(TfEvent::kStaleIgnored,
+           "ignoring /tf " + transform.header.frame_id + " -> " + child + " stamped " +
+               formatNumber(core::nsToSeconds(newest - toNs(transform.header.stamp))) +
+               " s before the link's newest, whose time line goes on: stale tf from another publisher?");
+  }
+}
+
+void TfFeed::noteDynamicParent(const std::string& child, const std::string& parent, core::TimeNs stamp) {
+  std::map<std::string, core::TimeNs>& parents = dynamic_parents_[child];
+  core::TimeNs& newest = parents[parent];
+  newest = std::max(newest, stamp);
+  if (parents.size() < 2 || two_parents_.count(child) > 0)
+    return;
+  const core::TimeNs cache = cache_time_.toNSec();
+  for (const auto& [other, other_stamp] : parents) {
+    if (other == parent || std::abs(other_stamp - stamp) > cache)
+      continue;  // a re-parenting long ago is no second parent
+    two_parents_[child] = other + " and " + parent;
+    notify(TfEvent::kTwoParents, child + " has two parents on /tf, " + two_parents_[child] +
+                                     " (two publishers of " + child + "?): tf answers through whichever " +
+                                     "came last, so lookups through " + child + " fail or jump");
+    return;
+  }
 }
 
 void TfFeed::forgetMotion() {
   buffer_->clear();
   motion_.clearSampleTimes();
   newest_link_stamps_.clear();
+  dynamic_parents_.clear();
+  backward_.clear();
+  // Held transforms went back with the time: they are the new time line.
+  std::vector<geometry_msgs::TransformStamped> held;
+  held.swap(held_);
+  for (const geometry_msgs::TransformStamped& transform : held)
+    add(transform, false);
 }
 
 void TfFeed::rebuildWithout(const std::string& child) {
@@ -124,6 +195,8 @@ void TfFeed::rebuildWithout(const std::string& child) {
   motion_.setBuffer(*buffer_);
   motion_.clearSampleTimes();
   newest_link_stamps_.clear();
+  backward_.clear();
+  held_.clear();
 }
 
 void TfFeed::setParent(const std::string& child, const std::string& parent) {
@@ -149,23 +222,125 @@ std::set<std::string> TfFeed::chainChildren() const {
   return children;
 }
 
-bool TfFeed::covers(core::TimeNs first, core::TimeNs last) const {
+Coverage TfFeed::coverage(core::TimeNs first, core::TimeNs last, std::string* why) const {
+  const auto never = [why](const std::string& text) {
+    if (why)
+      *why = text;
+    return Coverage::kNever;
+  };
+  const core::TimeNs newest = newestChainTime();
+  if (newest != 0 && (first + kFarNs < newest || last > newest + kFarNs)) {
+    const bool before = first < newest;
+    return never("the sweep lies " +
+                 formatNumber(core::nsToSeconds(before ? newest - first : last - newest)) + " s " +
+                 (before ? "before" : "after") + " tf's newest " + fixed_frame_ + " -> " + base_frame_ +
+                 " (" + std::to_string(core::nsToSeconds(newest)) +
+                 "): a stamp tf cannot cover (uninitialised, or on another clock)");
+  }
+  try {
+    std::string error;
+    return buffer_->canTransform(fixed_frame_, base_frame_, toRosTime(last), &error) &&
+                   buffer_->canTransform(fixed_frame_, base_frame_, toRosTime(first), &error)
+               ? Coverage::kCovered
+               : Coverage::kNotYet;
+  } catch (const std::exception& error) {  // ros::Time's "out of dual 32-bit range" inside tf2
+    return never("tf2 cannot take the sweep's times (" + std::to_string(core::nsToSeconds(first)) + " to " +
+                 std::to_string(core::nsToSeconds(last)) + "): " + error.what());
+  }
+}
+
+std::string TfFeed::unknownFrame(const std::string& frame, const std::string& what) const {
+  std::vector<std::string> frames;
+  buffer_->_getFrameStrings(frames);
+  std::sort(frames.begin(), frames.end());
+  const std::string closest = closestName(frame, frames);
+  std::string known;
+  for (const std::string& name : frames)
+    known += (known.empty() ? "" : ", ") + name;
+  return what + " '" + frame + "' is unknown to tf" +
+         (closest.empty() ? "" : " (did you mean '" + closest + "'?)") +
+         "; tf's frames: " + (known.empty() ? "none" : known);
+}
+
+std::string TfFeed::whyNotCovered(core::TimeNs first, core::TimeNs last, core::TimeNs arrival) const {
+  const std::string chain = "tf " + fixed_frame_ + " -> " + base_frame_;
+  if (!buffer_->_frameExists(fixed_frame_))
+    return unknownFrame(fixed_frame_, "fixed_frame");
+  if (!buffer_->_frameExists(base_frame_))
+    return unknownFrame(base_frame_, "base_frame");
+  const core::TimeNs cache = cache_time_.toNSec();
+  for (const auto& [child, parents] : dynamic_parents_) {
+    for (auto a = parents.begin(); a != parents.end(); ++a) {
+      for (auto b = std::next(a); b != parents.end(); ++b) {
+        if (std::abs(a->second - b->second) <= cache) {
+          return chain + ": " + child + " has two parents on /tf, " + a->first + " and " + b->first +
+                 " (two publishers of " + child + "?)";
+        }
+      }
+    }
+  }
   std::string error;
-  return buffer_->canTransform(fixed_frame_, base_frame_, toRosTime(last), &error) &&
-         buffer_->canTransform(fixed_frame_, base_frame_, toRosTime(first), &error);
+  const core::TimeNs newest = newestChainTime();
+  if (newest == 0) {
+    try {
+      buffer_->canTransform(fixed_frame_, base_frame_, ros::Time(0), &error);
+    } catch (const std::exception& thrown) {
+      error = thrown.what();
+    }
+    return chain + ": the frames are not connected: " + error;
+  }
+  const auto ms = [](core::TimeNs ns) {
+    char text[32];
+    std::snprintf(text, sizeof text, "%.1f ms", 1e3 * core::nsToSeconds(ns));
+    return std::string(text);
+  };
+  if (newest < last) {
+    // A sweep ending after its arrival (on the stamps' clock) by up to time_offset's range: stamped late.
+    // Further off, the owner's clock is another than the stamps'.
+    if (last > arrival + 1'000'000 && last < arrival + kLateStampNs) {
+      return chain + " ends " + ms(last - newest) + " before the sweep's end, which lies " +
+             ms(last - arrival) + " after the " +
+             "arrival: a driver stamping late (at the sweep's end, or with a delay)? " +
+             "deskew_calibrate finds time_offset from a recording";
+    }
+    return chain + " has not reached the sweep's end: its newest is " + ms(last - newest) + " before it";
+  }
+  try {
+    buffer_->canTransform(fixed_frame_, base_frame_, toRosTime(first), &error);
+  } catch (const std::exception& thrown) {
+    error = thrown.what();
+  }
+  return chain + " has nothing at the sweep's start, " + ms(newest - first) +
+         " before its newest (tf keeps " + formatNumber(cacheTime()) + " s): " + error;
+}
+
+std::string TfFeed::whyNoMount(const std::string& frame) const {
+  if (!buffer_->_frameExists(frame))
+    return unknownFrame(frame, "the scan's frame");
+  std::string error;
+  try {
+    buffer_->canTransform(base_frame_, frame, ros::Time(0), &error);
+  } catch (const std::exception& thrown) {
+    error = thrown.what();
+  }
+  return "not connected to " + base_frame_ + ": " + error;
 }
 
 core::TimeNs TfFeed::newestChainTime() const {
   try {
     return toNs(buffer_->lookupTransform(fixed_frame_, base_frame_, ros::Time(0)).header.stamp);
-  } catch (const tf2::TransformException&) {
+  } catch (const std::exception&) {  // tf2's, or ros::Time's
     return 0;
   }
 }
 
 bool TfFeed::mountKnown(const std::string& frame) const {
   std::string error;
-  return mounts_.count(frame) > 0 || buffer_->canTransform(base_frame_, frame, ros::Time(0), &error);
+  try {
+    return mounts_.count(frame) > 0 || buffer_->canTransform(base_frame_, frame, ros::Time(0), &error);
+  } catch (const std::exception&) {
+    return false;
+  }
 }
 
 std::optional<mrpt::poses::CPose3D> TfFeed::mount(const std::string& frame, std::string& error) {
@@ -175,8 +350,8 @@ std::optional<mrpt::poses::CPose3D> TfFeed::mount(const std::string& frame, std:
   mrpt::poses::CPose3D mount;
   try {
     mount = toPose(buffer_->lookupTransform(base_frame_, frame, ros::Time(0)).transform);
-  } catch (const tf2::TransformException& lookup_error) {
-    if (known != mounts_.end())  // the tf cache was cleared (time jump): keep the last mount
+  } catch (const std::exception& lookup_error) {  // tf2's, or ros::Time's
+    if (known != mounts_.end())                   // the tf cache was cleared (time jump): keep the last mount
       return known->second;
     error = lookup_error.what();
     return std::nullopt;

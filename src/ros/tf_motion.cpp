@@ -1,6 +1,6 @@
 #include "lidar_deskew/ros/tf_motion.h"
 
-#include <tf2/exceptions.h>
+#include <stdexcept>
 
 #include <algorithm>
 
@@ -14,7 +14,7 @@ mrpt::poses::CPose3D TfMotionSource::basePose(core::TimeNs time) const {
   }
   try {
     return toPose(buffer_->lookupTransform(fixed_frame_, base_frame_, toRosTime(time)).transform);
-  } catch (const tf2::TransformException& error) {
+  } catch (const std::exception& error) {  // tf2's, or ros::Duration's "out of dual 32-bit range"
     throw core::MotionUnavailable(time, error.what());
   }
 }

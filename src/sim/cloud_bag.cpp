@@ -9,6 +9,7 @@
 #include <stdexcept>
 
 #include "lidar_deskew/ros/conversions.h"
+#include "lidar_deskew/sim/sim_bag.h"
 
 namespace lidar_deskew::sim {
 namespace {
@@ -289,7 +290,7 @@ void writeCloudBag(const CloudScenario& scenario, const CloudBagOptions& options
   tf2_msgs::TFMessage static_transforms;
   static_transforms.transforms.push_back(
       stamped(options.base_frame, options.lidar_frame, at(tf_begin), run.mount));
-  bag.write("/tf_static", toRosTime(at(tf_begin)), static_transforms);
+  writeTfStatic(bag, toRosTime(at(tf_begin)), static_transforms);
 
   const long tf_samples = std::lround(std::floor((tf_end - tf_begin) * options.tf_rate + 1e-9));
   const auto tfTime = [&](long k) { return tf_begin + static_cast<double>(k) / options.tf_rate; };

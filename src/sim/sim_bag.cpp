@@ -34,6 +34,18 @@ geometry_msgs::TransformStamped stamped(const std::string& parent, const std::st
 
 }  // namespace
 
+void writeTfStatic(rosbag::Bag& bag, const ros::Time& time, const tf2_msgs::TFMessage& transforms) {
+  using Traits = ros::message_traits::DataType<tf2_msgs::TFMessage>;
+  auto header = boost::make_shared<ros::M_string>();
+  (*header)["callerid"] = "/lidar_deskew_simulator";
+  (*header)["latching"] = "1";
+  (*header)["topic"] = "/tf_static";
+  (*header)["type"] = Traits::value();
+  (*header)["md5sum"] = ros::message_traits::MD5Sum<tf2_msgs::TFMessage>::value();
+  (*header)["message_definition"] = ros::message_traits::Definition<tf2_msgs::TFMessage>::value();
+  bag.write("/tf_static", time, transforms, header);
+}
+
 void writeSimulationBag(const sim::Scenario& scenario, const SimBagOptions& options,
                         const std::string& bag_path, const std::string& truth_path) {
   const sim::TimingFault& fault = options.timing_fault;
@@ -67,7 +79,7 @@ void writeSimulationBag(const sim::Scenario& scenario, const SimBagOptions& opti
   tf2_msgs::TFMessage static_transforms;
   static_transforms.transforms.push_back(
       stamped(options.base_frame, options.laser_frame, at(tf_begin), scenario.mount));
-  bag.write("/tf_static", toRosTime(at(tf_begin)), static_transforms);
+  writeTfStatic(bag, toRosTime(at(tf_begin)), static_transforms);
 
   const long tf_samples = std::lround(std::floor((tf_end - tf_begin) * options.tf_rate));
   const auto tfTime = [&](long k) { return tf_begin + static_cast<double>(k) / options.tf_rate; };

@@ -144,6 +144,7 @@ struct RecordedBag {
   std::vector<sensor_msgs::PointCloud2> clouds;
   std::vector<core::TimeNs> cloud_record_times;
   std::vector<geometry_msgs::TransformStamped> tf, tf_static;
+  bool tf_static_latched = false;  // its connection header says "latching: 1", as rosbag record's
 };
 
 RecordedBag readBag(const std::string& path) {
@@ -156,6 +157,11 @@ RecordedBag readBag(const std::string& path) {
       recorded.cloud_record_times.push_back(static_cast<core::TimeNs>(message.getTime().toNSec()));
     } else if (auto transforms = message.instantiate<tf2_msgs::TFMessage>()) {
       auto& into = message.getTopic() == "/tf_static" ? recorded.tf_static : recorded.tf;
+      if (message.getTopic() == "/tf_static" && message.getConnectionHeader()) {
+        const auto latching = message.getConnectionHeader()->find("latching");
+        recorded.tf_static_latched =
+            latching != message.getConnectionHeader()->end() && latching->second == "1";
+      }
       into.insert(into.end(), transforms->transforms.begin(), transforms->transforms.end());
     } else {
       ADD_FAILURE() << "unexpected message on " << message.getTopic();
@@ -276,6 +282,7 @@ TEST_P(CloudBagTest, ReadsBackAsTheDriverWroteIt) {
   // tf: the mount once on /tf_static; odom -> base_link at 50 Hz, fully 3D, from 0.1 s before the
   // first sweep to 0.1 s after the last one's end.
   ASSERT_EQ(recorded.tf_static.size(), 1u);
+  EXPECT_TRUE(recorded.tf_static_latched);
   EXPECT_EQ(recorded.tf_static[0].header.frame_id, "base_link");
   EXPECT_EQ(recorded.tf_static[0].child_frame_id, "lidar");
   const Pose3 mount = toPose(recorded.tf_static[0].transform);

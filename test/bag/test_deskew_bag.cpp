@@ -13,6 +13,7 @@
 #include <unistd.h>
 
 #include <cstdio>
+#include <deque>
 #include <filesystem>
 #include <fstream>
 #include <functional>
@@ -199,6 +200,89 @@ TEST(DeskewBag, RealNeatoRecording) {
   EXPECT_LT(report.corrected_turning.mean, report.raw_turning.mean);
   EXPECT_LT(report.corrected.mean, report.raw.mean);
   std::remove(output.c_str());
+}
+
+// The Neato recording with what cost whole bags before: a scan stamped in 2105 (uninitialised: tf2
+// threw, deskew_bag and deskew_calibrate exited 1 and wrote nothing), one stamped 0, and a stray
+// publisher re-sending odom -> base_link 3 s stale at 2 Hz (each of its messages cleared the tf cache:
+// 18 of 23 scans in such a bag). The bad scans are dropped as invalid, the stale tf left out; every other
+// scan comes out as from the clean bag, and deskew_calibrate finds the clean bag's timing.
+TEST(DeskewBag, BadStampsAndStaleTfCostNoScan) {
+  const std::string input = temporary("neato_faults.bag"), output = temporary("neato_faults_out.bag"),
+                    clean_output = temporary("neato_clean_out.bag");
+  int stale = 0;
+  {
+    rosbag::Bag in(kNeatoBag, rosbag::bagmode::Read), out(input, rosbag::bagmode::Write);
+    std::deque<std::pair<double, geometry_msgs::TransformStamped>> odometry;  // record time, transform
+    double next_stray = -1.0;
+    int scans = 0;
+    for (const rosbag::MessageInstance& message : rosbag::View(in)) {
+      out.write(message.getTopic(), message.getTime(), message, message.getConnectionHeader());
+      const double now = message.getTime().toSec();
+      if (message.getTopic() == "/stable_scan" && (++scans == 10 || scans == 30)) {
+        auto bad = message.instantiate<sensor_msgs::LaserScan>();
+        bad->header.stamp = scans == 10 ? ros::Time(4'260'211'200, 0) : ros::Time(0, 0);
+        out.write("/stable_scan", message.getTime(), *bad);
+      }
+      if (message.getTopic() != "/tf")
+        continue;
+      for (const auto& transform : message.instantiate<tf2_msgs::TFMessage>()->transforms) {
+        if (transform.child_frame_id == "base_link")
+          odometry.emplace_back(now, transform);
+      }
+      if (next_stray < 0.0)
+        next_stray = now + 3.0;
+      if (now >= next_stray) {  // the newest odometry at least 3 s old, again
+        while (odometry.size() > 1 && odometry[1].first <= now - 3.0)
+          odometry.pop_front();
+        tf2_msgs::TFMessage stray;
+        stray.transforms.push_back(odometry.front().second);
+        out.write("/tf", message.getTime(), stray);
+        ++stale;
+        next_stray += 0.5;
+      }
+    }
+  }
+  BagDeskewOptions options;
+  options.input = input;
+  options.output = output;
+  options.scan_topics = {"/stable_scan"};
+  std::string notes;
+  options.inform = [&](const std::string& note) { notes += note + "\n"; };
+  const ros_adapter::PipelineCounters counters = deskewBag(options).counters.at("/stable_scan");
+  options.input = kNeatoBag;
+  options.output = clean_output;
+  const ros_adapter::PipelineCounters clean = deskewBag(options).counters.at("/stable_scan");
+  std::printf("Neato with 2 bad stamps and %d stale transforms: %llu of %llu scans corrected (clean: %llu)\n",
+              stale, static_cast<unsigned long long>(counters.published),
+              static_cast<unsigned long long>(counters.received),
+              static_cast<unsigned long long>(clean.published));
+  EXPECT_GE(stale, 10);
+  EXPECT_EQ(counters.received, clean.received + 2);
+  EXPECT_EQ(counters.dropped_invalid, 2u);
+  EXPECT_EQ(counters.published, clean.published);
+  EXPECT_EQ(counters.dropped_tf, clean.dropped_tf);
+  EXPECT_EQ(counters.time_jumps, 0u);
+  EXPECT_EQ(counters.stale_tf, static_cast<std::uint64_t>(stale));
+  EXPECT_NE(notes.find("invalid stamp"), std::string::npos) << notes;
+  EXPECT_NE(notes.find("stale tf from another publisher?"), std::string::npos) << notes;
+  // The corrected scans are those of the clean bag, to the bit.
+  const auto corrected = read<sensor_msgs::LaserScan>(output, "/stable_scan_deskewed");
+  const auto corrected_clean = read<sensor_msgs::LaserScan>(clean_output, "/stable_scan_deskewed");
+  ASSERT_EQ(corrected.size(), corrected_clean.size());
+  for (std::size_t k = 0; k < corrected.size(); ++k)
+    EXPECT_EQ(corrected[k]->ranges, corrected_clean[k]->ranges) << k;
+
+  CalibrateOptions calibrate;
+  calibrate.input = input;
+  calibrate.scan_topic = "/stable_scan";
+  const Calibration calibration = calibrateBag(calibrate);
+  calibrate.input = kNeatoBag;
+  const Calibration clean_calibration = calibrateBag(calibrate);
+  EXPECT_EQ(calibration.estimate.scans, clean_calibration.estimate.scans);
+  EXPECT_DOUBLE_EQ(calibration.estimate.time_offset, clean_calibration.estimate.time_offset);
+  for (const std::string& path : {input, output, clean_output})
+    std::remove(path.c_str());
 }
 
 TEST(DeskewBag, BadInputGivesAClearErrorAndNoOutput) {

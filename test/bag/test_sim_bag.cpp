@@ -25,7 +25,17 @@ struct Recorded {
   std::vector<Pose2> tf_poses;         // odom -> base_link, its yaw from the quaternion
   std::vector<nav_msgs::Odometry> odometry;
   std::vector<core::TimeNs> record_times;  // of every message, in file order
+  std::size_t latched_tf_static = 0;       // /tf_static messages whose connection latches
 };
+
+/// Whether a message's connection was latched when recorded (as `rosbag record` notes it).
+bool latched(const rosbag::MessageInstance& message) {
+  const auto header = message.getConnectionHeader();
+  if (!header)
+    return false;
+  const auto latching = header->find("latching");
+  return latching != header->end() && latching->second == "1";
+}
 
 Recorded readBag(const std::string& path) {
   rosbag::Bag bag(path, rosbag::bagmode::Read);
@@ -45,6 +55,8 @@ Recorded readBag(const std::string& path) {
       }
     } else if (message.getTopic() == "/odom") {
       recorded.odometry.push_back(*message.instantiate<nav_msgs::Odometry>());
+    } else if (message.getTopic() == "/tf_static") {
+      recorded.latched_tf_static += latched(message) ? 1 : 0;
     }
   }
   return recorded;
@@ -62,6 +74,8 @@ void checkFaultedBag(Scenario scenario, const TimingFault& fault, const std::str
   const std::string truth_path = ::testing::TempDir() + "/sim_" + label + ".truth";
   writeSimulationBag(scenario, options, bag_path, truth_path);
   const Recorded recorded = readBag(bag_path);
+  // /tf_static once, latched as rosbag record notes it (rosbag play then latches it).
+  EXPECT_EQ(recorded.latched_tf_static, 1u);
 
   const LidarModel& model = scenario.lidar;
   const double period = 1.0 / model.rate;

@@ -54,6 +54,13 @@ void LiveRig::subscribeOutputs() {
       });
 }
 
+std::vector<std::string> LiveRig::statusNames() const {
+  std::vector<std::string> names;
+  for (const auto& [name, status] : statuses_)
+    names.push_back(name);
+  return names;
+}
+
 bool testFlag(const std::string& name) {
   bool value = false;
   ros::NodeHandle("~").getParam(name, value);

@@ -72,6 +72,8 @@ class LiveRig {
   /// The newest level and message of the status whose name ends with `suffix` (e.g. ": timing");
   /// false when none arrived.
   bool status(const std::string& suffix, int& level, std::string& message) const;
+  /// The names of the deskew's statuses that arrived on /diagnostics so far.
+  std::vector<std::string> statusNames() const;
   /// How many statuses of the deskew arrived on /diagnostics so far.
   std::size_t diagnosticsReceived() const { return diagnostics_received_; }
 

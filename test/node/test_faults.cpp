@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <std_msgs/UInt32.h>
+#include <tf2_msgs/TFMessage.h>
 
 #include <signal.h>
 #include <sys/types.h>
@@ -11,6 +12,7 @@
 #include <cstdio>
 
 #include "live_rig.h"
+#include "support/holds.h"
 
 namespace lidar_deskew::test {
 namespace {
@@ -190,6 +192,89 @@ TEST(Faults, MissingMountIsWaitedForThenDropped) {
   EXPECT_LT(rms(cloudDistances(rig, *cloud)), 2e-3);
   EXPECT_TRUE(diagnosticReaches(rig, "dropped: mount", dropped_mount + 1.0));
   EXPECT_FALSE(rig.waitForOutputs(rig.stampOf(120.0), 0.1, scan, cloud));
+  // The cause is on /diagnostics too, with both frames.
+  EXPECT_TRUE(
+      holds(rig.diagnostic("last drop"),
+            "no transform base_link -> laser_never (the laser mount): the scan's frame 'laser_never' is "
+            "unknown to tf"));
+}
+
+// Stamps tf cannot take between good scans: 2105 (uninitialised; tf2 threw inside the deskew and the
+// scan jammed the queue's head, output stopped) and 0 (unset; it was counted as late tf). Each is
+// dropped as invalid at once and named; every good scan is corrected, none blamed on tf.
+TEST(Faults, BadStampsCostNoScan) {
+  LiveRig rig;
+  ASSERT_TRUE(rig.connect());
+  const double dropped_invalid = counterNow(rig, "dropped: invalid");
+  const double dropped_tf = counterNow(rig, "dropped: tf");
+  ASSERT_GE(dropped_invalid, 0.0) << "no diagnostics";
+  const double start = 121.0;
+  rig.publishTfUntil(start);
+  const auto stampedAt = [](const ros::Time& stamp) {
+    return [stamp](sensor_msgs::LaserScan& scan) { scan.header.stamp = stamp; };
+  };
+  rig.publishScan(start, stampedAt(ros::Time(4'260'211'200, 0)));  // 2105
+  rig.publishScan(start, stampedAt(ros::Time(0, 0)));
+  double worst = 0.0;
+  EXPECT_EQ(playCovered(rig, start, 8, &worst), 8);
+  EXPECT_LT(worst, 2e-3);
+  EXPECT_TRUE(diagnosticReaches(rig, "dropped: invalid", dropped_invalid + 2.0));
+  EXPECT_EQ(rig.diagnosticNumber("dropped: tf"), dropped_tf);
+  EXPECT_TRUE(holds(rig.diagnostic("last drop"), "invalid stamp: header.stamp is 0 (unset"));
+}
+
+// A stray second publisher of odom -> base_link, 3 s stale at 2 Hz, beside the real one at 50 Hz (it
+// cleared the tf cache at each of its messages: 114 of 139 scans delivered). Its transforms are left
+// out and counted, the cache kept: every scan is corrected, no time jump.
+TEST(Faults, StaleTfOfAStrayPublisherCostsNoScan) {
+  LiveRig rig;
+  ASSERT_TRUE(rig.connect());
+  ros::NodeHandle nh;
+  ros::Publisher stray = nh.advertise<tf2_msgs::TFMessage>("/tf", 10);
+  ASSERT_TRUE(rig.waitFor([&] { return stray.getNumSubscribers() > 0; }, 5.0));
+  const double time_jumps = counterNow(rig, "time jumps");
+  const double stale = counterNow(rig, "stale tf ignored");
+  ASSERT_GE(time_jumps, 0.0) << "no diagnostics";
+  const double start = 123.0;
+  const int count = 80;  // 2 s at 40 Hz
+  int delivered = 0;
+  for (int k = 0; k < count; ++k) {
+    const double t = start + k * kScanPeriod;
+    if (k % 20 == 10) {
+      tf2_msgs::TFMessage message;
+      message.transforms.push_back(stamped("odom", "base_link", rig.stampOf(t - 3.0), {9.0, 9.0, 1.0}));
+      stray.publish(message);
+    }
+    delivered += playCovered(rig, t, 1);
+  }
+  EXPECT_EQ(delivered, count);
+  EXPECT_TRUE(diagnosticReaches(rig, "stale tf ignored", stale + 4.0));
+  EXPECT_EQ(rig.diagnosticNumber("time jumps"), time_jumps);
+}
+
+// The status is named once after the node ("lidar_deskew: deskew"; it read "lidar_deskew: /lidar_deskew:
+// deskew"), and its message names the cause when sweeps are dropped.
+TEST(Faults, StatusCarriesTheNodesNameOnce) {
+  LiveRig rig;
+  ASSERT_TRUE(rig.connect());
+  ASSERT_TRUE(rig.waitFor([&] { return !rig.statusNames().empty(); }, 5.0));
+  const std::vector<std::string> names = rig.statusNames();  // and "lidar_deskew: timing" once turned
+  EXPECT_NE(std::find(names.begin(), names.end(), "lidar_deskew: deskew"), names.end());
+  for (const std::string& name : names)
+    EXPECT_EQ(name.find('/'), std::string::npos) << name;
+  rig.publishTfUntil(126.1);
+  rig.publishScan(126.0, [](sensor_msgs::LaserScan& scan) { scan.header.frame_id = "lasr"; });
+  int level = -1;
+  std::string message;
+  EXPECT_TRUE(rig.waitFor(
+      [&] {
+        return rig.status(": deskew", level, message) &&
+               message.find("the scan's frame 'lasr' is unknown to tf (did you mean 'laser'?)") !=
+                   std::string::npos;
+      },
+      5.0))
+      << message;
+  EXPECT_EQ(level, diagnostic_msgs::DiagnosticStatus::WARN);
 }
 
 // More scans wait for tf than queue_size (10): the oldest are dropped and counted as "dropped: queue";

@@ -5,6 +5,7 @@
 #include "lidar_deskew/ros/scan_pipeline.h"
 #include "lidar_deskew/ros/text_params.h"
 #include "lidar_deskew/sim/sim.h"
+#include "support/holds.h"
 #include "support/tf_tree.h"
 
 namespace lidar_deskew::test {
@@ -19,15 +20,18 @@ constexpr double kTfPeriod = 0.02;
 
 /// A pipeline and everything it handed out.
 struct PipelineRun {
-  explicit PipelineRun(const Drive& drive_in, ros_adapter::DeskewParams params = {})
+  /// `fixed_frame`: instead of the tree's (a misspelt one).
+  explicit PipelineRun(const Drive& drive_in, ros_adapter::DeskewParams params = {},
+                       const std::string& fixed_frame = "")
       : drive(drive_in),
         pipeline(
-            withFrames(params, drive_in.tree),
+            withFrames(params, drive_in.tree, fixed_frame),
             [this](const PipelineResult& result) { results.push_back(result); },
             [this](PipelineEvent event, const std::string& text) { events.emplace_back(event, text); }) {}
 
-  static ros_adapter::DeskewParams withFrames(ros_adapter::DeskewParams params, const TfTree& tree) {
-    params.fixed_frame = tree.fixed;
+  static ros_adapter::DeskewParams withFrames(ros_adapter::DeskewParams params, const TfTree& tree,
+                                              const std::string& fixed_frame) {
+    params.fixed_frame = fixed_frame.empty() ? tree.fixed : fixed_frame;
     params.base_frame = tree.base;
     return params;
   }
@@ -341,6 +345,148 @@ TEST(ScanPipeline, MissingMountIsDroppedAndNamed) {
   ASSERT_TRUE(run.said(PipelineEvent::kMountMissing));
   EXPECT_NE(run.events.back().second.find("base_link -> laser"), std::string::npos)
       << run.events.back().second;
+}
+
+/// The last event of `kind` the pipeline reported (empty when none).
+std::string lastSaid(const PipelineRun& run, PipelineEvent kind) {
+  std::string text;
+  for (const auto& [event, said] : run.events) {
+    if (event == kind)
+      text = said;
+  }
+  return text;
+}
+
+// Stamps tf cannot take: 0 (unset), 2105 (uninitialised: tf2 threw "Duration is out of dual 32-bit
+// range" and the scan jammed the queue's head), 1970. Each is dropped as invalid and named when it
+// reaches the queue's head; the scans around it are corrected, nothing is blamed on tf.
+TEST(ScanPipeline, StampsTfCannotTakeAreDroppedAndTheStreamGoesOn) {
+  PipelineRun run{Drive()};
+  const auto bad = [&](double t, const ros::Time& stamp) {
+    const auto scan = run.drive.scanAt(t);
+    scan->header.stamp = stamp;
+    return scan;
+  };
+  // Before any tf: the 2105 scan waits behind nothing, and is judged when tf comes.
+  run.pipeline.add(bad(0.05, ros::Time(4'260'211'200, 0)), 0.06);
+  EXPECT_EQ(run.pipeline.waiting(), 1u);
+  run.statics(0.06);
+  run.tfUntil(0.1);
+  EXPECT_EQ(run.pipeline.waiting(), 0u);
+  EXPECT_EQ(run.pipeline.counters().dropped_invalid, 1u);
+  EXPECT_TRUE(holds(lastSaid(run, PipelineEvent::kMalformed), "invalid stamp: the sweep lies"));
+  // Each kind between good scans, and one behind a good scan waiting for tf.
+  const std::vector<std::pair<ros::Time, std::string>> stamps = {
+      {ros::Time(0, 0), "invalid stamp: header.stamp is 0 (unset"},
+      {ros::Time(4'260'211'200, 0), "after tf's newest odom -> base_link"},
+      {ros::Time(1, 0), "before tf's newest odom -> base_link"}};
+  double t = 0.1;
+  for (const auto& [stamp, named] : stamps) {
+    run.scan(t);
+    run.pipeline.add(run.drive.scanAt(t + 0.025), t + 0.05);  // waits for its tf
+    run.pipeline.add(bad(t + 0.03, stamp), t + 0.05);         // judged once it is at the head
+    run.tfUntil(t + 0.075);
+    EXPECT_TRUE(holds(lastSaid(run, PipelineEvent::kMalformed), named));
+    t += 0.075;
+  }
+  const PipelineCounters& counters = run.pipeline.counters();
+  EXPECT_EQ(counters.dropped_invalid, 4u);
+  EXPECT_EQ(counters.published, 6u);
+  EXPECT_EQ(counters.dropped_tf, 0u);
+  EXPECT_EQ(run.pipeline.waiting(), 0u);
+  EXPECT_LT(rms(run.cloudDistances()), 1e-3);
+}
+
+// A scan tf does not cover is dropped, after tf_timeout, with its frames and its cause: a fixed_frame
+// unknown to tf (with the closest frame tf knows), tf short of the sweep's end (by how much), a sweep
+// ending after its arrival (a driver stamping late), a missing mount (the scan frame misspelt), a base
+// with two parents.
+TEST(ScanPipeline, DropsNameTheirCause) {
+  ros_adapter::DeskewParams params;
+  params.tf_timeout = 0.2;
+  const auto dropOne = [](PipelineRun& run, double arrival, PipelineEvent kind,
+                          const std::function<void(sensor_msgs::LaserScan&)>& modify = {}) {
+    run.statics(0.0);
+    run.tfUntil(0.1);
+    const auto scan = run.drive.scanAt(0.1);  // [0.1, 0.125]: tf ends at its first beam
+    if (modify)
+      modify(*scan);
+    run.pipeline.add(scan, arrival);
+    run.pipeline.expire(arrival + 0.3);
+    EXPECT_EQ(run.pipeline.waiting(), 0u);
+    return lastSaid(run, kind);
+  };
+  {
+    PipelineRun run(Drive(), params, "odm");
+    EXPECT_EQ(dropOne(run, 0.13, PipelineEvent::kTfFailure),
+              "dropping scan at 1700000000.100000 (frame laser): fixed_frame 'odm' is unknown to tf (did you "
+              "mean 'odom'?); tf's frames: base_link, laser, odom (waited tf_timeout, 0.2 s)");
+    EXPECT_EQ(run.pipeline.counters().dropped_tf, 1u);
+  }
+  {
+    PipelineRun run(Drive(), params);
+    EXPECT_EQ(dropOne(run, 0.13, PipelineEvent::kTfFailure),
+              "dropping scan at 1700000000.100000 (frame laser): tf odom -> base_link has not reached the "
+              "sweep's end: its newest is 25.0 ms before it (waited tf_timeout, 0.2 s)");
+  }
+  {
+    // The owner's clock on the stamps' (as live and offline; the other cases keep it apart).
+    PipelineRun run(Drive(), params);
+    const std::string said =
+        dropOne(run, core::nsToSeconds(run.drive.epoch) + 0.11, PipelineEvent::kTfFailure);
+    EXPECT_TRUE(holds(said,
+                      "tf odom -> base_link ends 25.0 ms before the sweep's end, which lies 15.0 ms "
+                      "after the arrival: a driver stamping late"));
+    EXPECT_TRUE(holds(said, "deskew_calibrate finds time_offset"));
+  }
+  {
+    PipelineRun run(Drive(), params);
+    EXPECT_EQ(
+        dropOne(run, 0.13, PipelineEvent::kMountMissing,
+                [](sensor_msgs::LaserScan& scan) { scan.header.frame_id = "lasr"; }),
+        "dropping scan at 1700000000.100000: no transform base_link -> lasr (the laser mount): the scan's "
+        "frame 'lasr' is unknown to tf (did you mean 'laser'?); tf's frames: base_link, laser, odom");
+    EXPECT_EQ(run.pipeline.counters().dropped_mount, 1u);
+  }
+  {
+    PipelineRun run(Drive(), params);
+    for (double t = 0.0; t <= 0.1; t += 0.05)
+      run.pipeline.addTransforms({stamped("map", "base_link", run.drive.stampOf(t + 0.005), {1.0, 2.0, 0.3})},
+                                 false, t);
+    EXPECT_TRUE(holds(dropOne(run, 0.13, PipelineEvent::kTfFailure),
+                      "tf odom -> base_link: base_link has two parents on /tf, map and odom"));
+    EXPECT_TRUE(holds(lastSaid(run, PipelineEvent::kTwoParents), "base_link has two parents on /tf"));
+  }
+}
+
+// A stray publisher of odom -> base_link 3 s stale at 2 Hz beside the real one at 50 Hz (it cleared the
+// tf cache at each of its messages: 114 of 139 scans delivered). Its transforms are left out, said
+// once and counted; every scan is corrected. A real jump afterwards (three in a row) still clears.
+TEST(ScanPipeline, StaleTfOfAStrayPublisherCostsNoScan) {
+  PipelineRun run{Drive()};
+  run.statics(0.0);
+  run.tfUntil(3.5);
+  int scans = 0;
+  for (double t = 3.5; t < 7.0; t += 0.025) {
+    run.pipeline.add(run.drive.scanAt(t), t + 0.025);
+    ++scans;
+    run.tfUntil(t + 0.045);
+    if (std::fmod(t + 1e-9, 0.5) < 0.025)  // every 0.5 s, the stray one, with a wrong pose
+      run.pipeline.addTransforms({stamped("odom", "base_link", run.drive.stampOf(t - 3.0), {9.0, 9.0, 1.0})},
+                                 false, t + 0.03);
+  }
+  run.tfUntil(7.1);
+  const PipelineCounters& counters = run.pipeline.counters();
+  EXPECT_EQ(counters.published, static_cast<std::uint64_t>(scans));
+  EXPECT_EQ(counters.time_jumps, 0u);
+  EXPECT_EQ(counters.stale_tf, 7u);
+  EXPECT_EQ(std::count_if(run.events.begin(), run.events.end(),
+                          [](const auto& e) { return e.first == PipelineEvent::kStaleTf; }),
+            1);
+  EXPECT_LT(rms(run.cloudDistances()), 1e-3);
+  run.tf_until = 0.0;  // the bag starts again
+  run.tfUntil(0.1);
+  EXPECT_EQ(run.pipeline.counters().time_jumps, 1u);
 }
 
 }  // namespace

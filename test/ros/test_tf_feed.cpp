@@ -2,8 +2,11 @@
 // out, and what it answers, against the transforms fed (closed form).
 #include <gtest/gtest.h>
 
+#include <cmath>
+
 #include "lidar_deskew/ros/conversions.h"
 #include "lidar_deskew/ros/tf_feed.h"
+#include "support/holds.h"
 #include "support/tf_tree.h"
 
 namespace lidar_deskew::test {
@@ -15,10 +18,18 @@ using ros_adapter::TfFeed;
 struct Fed {
   explicit Fed(double cache_time = 10.0, const std::string& fixed = "odom",
                const std::string& base = "base_link")
-      : feed(fixed, base, cache_time, [this](TfEvent event, const std::string&) { ++events[event]; }) {}
+      : feed(fixed, base, cache_time, [this](TfEvent event, const std::string& text) {
+          ++events[event];
+          texts[event] = text;
+        }) {}
   std::map<TfEvent, int> events;
+  std::map<TfEvent, std::string> texts;  // the last of each
   TfFeed feed;
 };
+
+core::TimeNs at(double t) {
+  return Drive().epoch + core::secondsToNs(t);
+}
 
 const Drive kDrive;
 
@@ -95,9 +106,18 @@ TEST(TfFeed, TimeJumpClearsTheCacheAndKeepsTheMount) {
   std::string error;
   ASSERT_TRUE(fed.feed.mount("laser", error));
   EXPECT_TRUE(fed.feed.add(kDrive.motionAt(3.51), false));  // 0.49 s back: late, no jump
-  EXPECT_FALSE(fed.feed.add(kDrive.motionAt(0.0), false));  // 4 s back: a bag loop
+  // 4 s back (a bag loop), and the new time line goes on: a jump at the third transform in a row.
+  EXPECT_TRUE(fed.feed.add(kDrive.motionAt(0.0), false));
+  EXPECT_TRUE(fed.feed.jumpPending());
+  EXPECT_TRUE(fed.feed.add(kDrive.motionAt(0.02), false));
+  EXPECT_EQ(fed.events[TfEvent::kTimeJump], 0);
+  EXPECT_FALSE(fed.feed.add(kDrive.motionAt(0.04), false));
   EXPECT_EQ(fed.events[TfEvent::kTimeJump], 1);
+  EXPECT_FALSE(fed.feed.jumpPending());
   EXPECT_FALSE(fed.feed.covers(kDrive.epoch + core::secondsToNs(3.0), kDrive.epoch + core::secondsToNs(3.0)));
+  // The three held transforms start the new time line.
+  EXPECT_TRUE(fed.feed.covers(at(0.0), at(0.04)));
+  EXPECT_EQ(fed.events[TfEvent::kStaleIgnored], 0);
   EXPECT_TRUE(fed.feed.mount("laser", error));
   // Transforms tf2 would refuse are reported, not thrown.
   EXPECT_TRUE(fed.feed.add(stamped("odom", "odom", kDrive.stampOf(0.1), {}), false));
@@ -117,8 +137,124 @@ TEST(TfFeed, LinksThatLeadOthersAreNoTimeJump) {
   EXPECT_TRUE(fed.feed.covers(kDrive.epoch + core::secondsToNs(3.0), kDrive.epoch + core::secondsToNs(3.5)));
   EXPECT_FALSE(fed.feed.motion().sampleTimesComplete());  // two moving links: knots between samples too
   // A real jump of one link is still one.
-  fed.feed.add(kDrive.motionAt(0.5), false);
+  for (const double t : {0.5, 0.52, 0.54})
+    fed.feed.add(kDrive.motionAt(t), false);
   EXPECT_EQ(fed.events[TfEvent::kTimeJump], 1);
+}
+
+// A stray second publisher of odom -> base_link, 3 s stale at 2 Hz, beside the real one at 50 Hz: its
+// transforms go back, but the real time line goes on after each. They are left out (each reported),
+// the cache is kept, and tf answers the true motion at their stamps (they carry a wrong pose here).
+// Three transforms going back in a row afterwards are still a time jump.
+TEST(TfFeed, StaleTfOfAStrayPublisherIsLeftOutAndTheCacheKept) {
+  Fed fed;
+  int stray = 0;
+  for (int k = 0; k <= 500; ++k) {
+    const double t = 0.02 * k;
+    fed.feed.add(kDrive.motionAt(t), false);
+    if (k % 25 == 0 && t >= 3.5) {
+      fed.feed.add(stamped("odom", "base_link", kDrive.stampOf(t - 3.0), {100.0, -50.0, 2.0}), false);
+      ++stray;
+    }
+  }
+  fed.feed.add(kDrive.motionAt(10.02), false);  // the old time line goes on after the last one too
+  EXPECT_EQ(stray, 14);
+  EXPECT_EQ(fed.events[TfEvent::kStaleIgnored], stray);
+  EXPECT_TRUE(
+      holds(fed.texts[TfEvent::kStaleIgnored], "odom -> base_link stamped 3.02 s before the link's newest"));
+  EXPECT_EQ(fed.events[TfEvent::kTimeJump], 0);
+  EXPECT_FALSE(fed.feed.jumpPending());
+  EXPECT_TRUE(fed.feed.covers(at(1.0), at(10.0)));  // nothing cleared: 9 s of history
+  for (const double t : {4.0, 5.5, 7.0}) {          // stray stamps
+    const mrpt::poses::CPose3D pose = fed.feed.motion().basePose(at(t));
+    EXPECT_NEAR(pose.x(), kDrive.trajectory.pose(t).x, 1e-9) << t;
+    EXPECT_NEAR(std::remainder(pose.yaw() - kDrive.trajectory.pose(t).yaw, 2 * M_PI), 0.0, 1e-9) << t;
+  }
+  for (const double t : {0.0, 0.02, 0.04})
+    fed.feed.add(kDrive.motionAt(t), false);
+  EXPECT_EQ(fed.events[TfEvent::kTimeJump], 1);
+}
+
+// Stamps tf can never cover are told apart from late tf, and never throw: an uninitialised stamp in
+// 2105 (tf2 itself throws "Duration is out of dual 32-bit range" for it), 1970, both more than a day
+// from tf's newest; a stamp an hour ahead is merely not covered yet. A transform stamped within the
+// cache time of ros::Time's end (2106), which tf2 throws on when adding it, is refused and reported.
+TEST(TfFeed, StampsTfCannotTakeAreNeverCovered) {
+  Fed fed;
+  for (int k = 0; k <= 50; ++k)
+    fed.feed.add(kDrive.motionAt(0.02 * k), false);
+  const core::TimeNs year_2105 = 4'260'211'200'000'000'000;
+  std::string why;
+  EXPECT_EQ(fed.feed.coverage(year_2105, year_2105 + 25'000'000, &why), ros_adapter::Coverage::kNever);
+  EXPECT_TRUE(holds(why, "after tf's newest odom -> base_link")) << why;
+  EXPECT_TRUE(holds(why, "uninitialised, or on another clock"));
+  EXPECT_EQ(fed.feed.coverage(1'000'000'000, 1'025'000'000, &why), ros_adapter::Coverage::kNever);
+  EXPECT_TRUE(holds(why, "before tf's newest"));
+  EXPECT_EQ(fed.feed.coverage(at(3600.0), at(3600.025)), ros_adapter::Coverage::kNotYet);
+  EXPECT_EQ(fed.feed.coverage(at(0.5), at(0.525)), ros_adapter::Coverage::kCovered);
+  // tf2 itself throws on such a stamp: what TfFeed::coverage keeps it from.
+  EXPECT_THROW(fed.feed.buffer().canTransform("odom", "base_link", ros_adapter::toRosTime(year_2105), &why),
+               std::runtime_error);
+
+  Fed end;
+  const core::TimeNs near_end = (core::TimeNs{1} << 32) * 1'000'000'000 - core::secondsToNs(5.0);
+  for (const core::TimeNs stamp : {near_end, near_end + 20'000'000}) {
+    geometry_msgs::TransformStamped transform = kDrive.motionAt(0.0);
+    transform.header.stamp = ros_adapter::toRosTime(stamp);
+    EXPECT_NO_THROW(end.feed.add(transform, false));
+  }
+  EXPECT_EQ(end.events[TfEvent::kBadTransform], 2);
+  EXPECT_TRUE(holds(end.texts[TfEvent::kBadTransform], "tf2 refused /tf odom -> base_link"));
+  EXPECT_TRUE(holds(end.texts[TfEvent::kBadTransform], "Time is out of dual 32-bit range"));
+}
+
+// Why tf does not cover a sweep, by cause, naming the frames.
+TEST(TfFeed, WhyNotCoveredNamesTheCause) {
+  // fixed_frame misspelt: unknown to tf, with the closest frame tf knows.
+  Fed typo(10.0, "odm");
+  for (const auto& link : kDrive.statics())
+    typo.feed.add(link, true);
+  for (int k = 0; k <= 50; ++k)
+    typo.feed.add(kDrive.motionAt(0.02 * k), false);
+  EXPECT_EQ(typo.feed.whyNotCovered(at(0.5), at(0.525), at(0.53)),
+            "fixed_frame 'odm' is unknown to tf (did you mean 'odom'?); tf's frames: base_link, laser, odom");
+  // The scan's frame misspelt: the mount's cause.
+  EXPECT_EQ(
+      typo.feed.whyNoMount("lasr"),
+      "the scan's frame 'lasr' is unknown to tf (did you mean 'laser'?); tf's frames: base_link, laser, "
+      "odom");
+
+  Fed fed;
+  for (int k = 0; k <= 50; ++k)  // tf up to 1.0 s
+    fed.feed.add(kDrive.motionAt(0.02 * k), false);
+  // tf short of the sweep's end [1.0, 1.1], which ended before the scan arrived (1.2): late tf.
+  EXPECT_EQ(fed.feed.whyNotCovered(at(1.0), at(1.1), at(1.2)),
+            "tf odom -> base_link has not reached the sweep's end: its newest is 100.0 ms before it");
+  // The sweep ends 50 ms after it arrived: a driver stamping late.
+  EXPECT_TRUE(holds(
+      fed.feed.whyNotCovered(at(1.0), at(1.1), at(1.05)),
+      "tf odom -> base_link ends 100.0 ms before the sweep's end, which lies 50.0 ms after the arrival"));
+  EXPECT_TRUE(holds(fed.feed.whyNotCovered(at(1.0), at(1.1), at(1.05)), "deskew_calibrate"));
+  // The mount's frame known but not connected to the base.
+  fed.feed.add(stamped("plate", "laser", kDrive.stampOf(0.0), {}), true);
+  EXPECT_TRUE(holds(fed.feed.whyNoMount("laser"), "not connected to base_link"));
+  // A second parent of base_link on /tf (a localiser publishing map -> base_link): reported once, and
+  // named as the cause.
+  for (int k = 51; k <= 60; ++k) {
+    fed.feed.add(kDrive.motionAt(0.02 * k), false);
+    fed.feed.add(stamped("map", "base_link", kDrive.stampOf(0.02 * k + 0.01), {1.0, 2.0, 0.3}), false);
+  }
+  EXPECT_EQ(fed.events[TfEvent::kTwoParents], 1);
+  EXPECT_TRUE(holds(fed.texts[TfEvent::kTwoParents], "base_link has two parents on /tf, odom and map"));
+  EXPECT_EQ(fed.feed.whyNotCovered(at(1.1), at(1.3), at(1.4)),
+            "tf odom -> base_link: base_link has two parents on /tf, map and odom (two publishers of "
+            "base_link?)");
+  // fixed and base not connected at all.
+  Fed apart(10.0, "odom", "base_link");
+  apart.feed.add(stamped("odom", "x", kDrive.stampOf(0.0), {}), false);
+  apart.feed.add(stamped("y", "base_link", kDrive.stampOf(0.0), {}), false);
+  EXPECT_TRUE(holds(apart.feed.whyNotCovered(at(0.0), at(0.1), at(0.2)),
+                    "tf odom -> base_link: the frames are not connected"));
 }
 
 }  // namespace

@@ -6,7 +6,9 @@
 
 #include <memory>
 #include <string>
+#include <vector>
 
+#include "lidar_deskew/core/scan.h"
 #include "lidar_deskew/ros/tf_feed.h"
 
 namespace lidar_deskew::eval {
@@ -19,5 +21,10 @@ std::unique_ptr<ros_adapter::TfFeed> loadRecordedTf(rosbag::Bag& bag, const std:
                                                     const std::string& fixed_frame,
                                                     const std::string& base_frame,
                                                     std::string* notes = nullptr);
+
+/// Leaves out of `scans` those whose stamp tf cannot take: 0 (unset), or far from tf's time line
+/// (TfFeed::coverage says never: an uninitialised stamp, another clock), as the node and deskew_bag
+/// drop them. Returns how many it left out.
+std::size_t dropStampsTfCannotTake(std::vector<core::PlanarScan>& scans, const ros_adapter::TfFeed& tf);
 
 }  // namespace lidar_deskew::eval

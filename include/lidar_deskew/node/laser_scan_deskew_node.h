@@ -101,7 +101,8 @@ class DeskewNode {
   Counters timing_;        // the timing fields only; the rest is the pipeline's
   ros::WallTime trigger_;  // the callback now serving scans
   std::map<ros_adapter::PipelineEvent, ros::WallTime> last_report_;  // for throttling
-  std::vector<double> latencies_;                                    // [s] ring of the last kLatencies
+  std::string last_drop_;          // why the newest dropped (or passed through) sweep was, for /diagnostics
+  std::vector<double> latencies_;  // [s] ring of the last kLatencies
   std::size_t next_latency_ = 0;
   Counters counters_at_last_diagnostics_;
   ros::WallTime last_diagnostics_;

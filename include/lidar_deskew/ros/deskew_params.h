@@ -99,4 +99,8 @@ struct DeskewParams {
 
 std::string toString(OnTfFailure value);
 
+/// Of `candidates`, the one closest to `name` by edit distance when at most two edits away (a
+/// misspelling: "odm" -> "odom"); empty when none is.
+std::string closestName(const std::string& name, const std::vector<std::string>& candidates);
+
 }  // namespace lidar_deskew::ros_adapter

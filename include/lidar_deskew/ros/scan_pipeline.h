@@ -38,6 +38,9 @@ struct PipelineCounters {
   /// cache cleared, the waiting scans failed (dropped or passed through, and counted so).
   std::uint64_t time_jumps = 0;
   std::uint64_t statics_ignored = 0;  ///< /tf_static parents of moving frames left out
+  /// /tf transforms stamped over 1 s before their link's newest while its time line went on (a stray
+  /// publisher of stale tf): left out, the tf cache kept.
+  std::uint64_t stale_tf = 0;
   /// Scans lost before the pipeline saw them (a driver's, the network's or roscpp's input queue), from
   /// gaps in header.seq; 0 when the driver leaves seq unset.
   std::uint64_t lost_upstream = 0;
@@ -58,6 +61,8 @@ enum class PipelineEvent {
   kStaticIgnored,  ///< a /tf_static parent of a moving frame left out (warning, once per frame)
   kTimeJump,       ///< time went backwards (warning)
   kBadTransform,   ///< a transform was refused (warning)
+  kStaleTf,        ///< stale /tf transforms left out (warning, once)
+  kTwoParents,     ///< a frame has two parents on /tf (warning, once per frame)
 };
 
 /// A sweep's outputs, handed to the owner.
@@ -94,10 +99,12 @@ class SweepPipeline {
   /// Transforms from /tf or /tf_static at `now` [s]; serves the scans they complete.
   void addTransforms(const std::vector<geometry_msgs::TransformStamped>& transforms, bool is_static,
                      double now);
-  /// A scan arriving at `now` [s]: checked, queued, served if tf already covers it. `id` comes back
-  /// with its result.
+  /// A scan arriving at `now` [s]: checked (one stamped 0, unset, is dropped as invalid), queued,
+  /// served if tf already covers it. `id` comes back with its result.
   void add(const typename Message::ConstPtr& message, double now, std::uint64_t id = 0);
-  /// Serves the scans tf covers, in arrival order (a waiting scan holds back those behind it).
+  /// Serves the scans tf covers, in arrival order (a waiting scan holds back those behind it). A scan
+  /// whose times tf cannot take (TfFeed::Coverage::kNever: far from tf's time line) is dropped as
+  /// invalid when it reaches the head; none is served while tf went back undecided (TfFeed::jumpPending).
   void serveReady(double now);
   /// The scans that have waited longer than tf_timeout at `now` [s]: extrapolated when
   /// max_extrapolation allows, else failed (dropped or passed through).
@@ -135,8 +142,14 @@ class SweepPipeline {
   /// reset seen before any tf of the new time line, or alone), unless tf's stamps went back just before.
   void observeClock(double now);
   /// Fails every waiting scan (dropped without a mount, else per on_tf_failure): their tf will not come.
+  /// An empty `reason`: each with the cause TfFeed finds.
   void failWaiting(const std::string& reason);
-  bool ready(const Pending& pending) const;
+  /// Drops a sweep whose stamp tf cannot take, counted as invalid.
+  void dropInvalid(const Pending& pending, const std::string& why);
+  /// Drops a sweep without its mount; `error` (tf2's) or else the cause TfFeed finds.
+  void dropForMount(const Pending& pending, const std::string& error);
+  /// The cause of tf not covering the sweep (TfFeed::whyNotCovered).
+  std::string whyNotCovered(const Pending& pending) const;
   /// tf ends inside the sweep, at most max_extrapolation before its last beam.
   bool extrapolatable(const Pending& pending) const;
   void correct(const Pending& pending, bool extrapolate, double now);

@@ -12,6 +12,7 @@
 #include <optional>
 #include <set>
 #include <string>
+#include <vector>
 
 #include "lidar_deskew/core/types.h"
 #include "lidar_deskew/ros/tf_motion.h"
@@ -21,10 +22,20 @@ namespace lidar_deskew::ros_adapter {
 /// What the feed tells its owner (who logs and counts it).
 enum class TfEvent {
   kStaticIgnored,  ///< a /tf_static parent of a frame that moves on /tf was left out (once per frame)
-  kTimeJump,       ///< the chain's stamps went back by more than 1 s: the tf cache was cleared
+  kTimeJump,       ///< a link's stamps went back by more than 1 s and went on so: the tf cache was cleared
+  kStaleIgnored,   ///< a transform stamped over 1 s before its link's newest, the link's time line going on
+                   ///< (a stray publisher of stale tf): left out, reported for each such transform
+  kTwoParents,     ///< a frame has two parents on /tf (once per frame)
   kBadTransform,   ///< a transform refused (by tf2, or for empty or equal frames, non-finite values)
   kMountFirst,     ///< the first mount of a scan frame
   kMountChanged,   ///< the mount of a scan frame changed
+};
+
+/// Whether tf answers fixed -> base over a sweep.
+enum class Coverage {
+  kCovered,  ///< at both ends
+  kNotYet,   ///< not now; it may later
+  kNever,    ///< tf cannot take the sweep's times (0, far from tf's time line, or tf2 throws on them)
 };
 
 /// Owns the tf2 buffer that answers fixed_frame -> base_frame and the mounts. Frame ids are normalised
@@ -34,7 +45,13 @@ enum class TfEvent {
 ///   that do not move on /tf (REP-105's base_footprint -> base_link under a moving base_footprint, a
 ///   mount through a plate) are kept.
 /// - A dynamic link of the fixed -> base chain stamped more than 1 s before that link's own newest
-///   stamp means time went backwards (a bag loop, a /clock reset): the dynamic cache is cleared.
+///   stamp is held back. When the new, earlier time line goes on (kJumpConfirmations such transforms
+///   of the link in a row) time went backwards (a bag loop, a /clock reset): the dynamic cache is
+///   cleared and the held transforms start the new time line. When the old time line goes on instead,
+///   the held ones were stale (a stray publisher): left out, the cache kept.
+/// - A frame with two parents on /tf (map -> base_link beside odom -> base_link) is reported.
+/// - tf2's exceptions (its own, and ros::Time's "out of dual 32-bit range" for far stamps) are caught
+///   here: a transform refused, a time tf cannot take.
 /// - Transforms tf2 refuses (or that have empty or equal frame ids, non-finite values) are reported
 ///   and leave no trace.
 /// - The mount base_frame -> scan frame is the newest tf has (any chain, identity when the scan frame
@@ -57,8 +74,30 @@ class TfFeed {
   /// The next /tf is then taken as the new time line, not as a jump.
   void forgetMotion();
 
+  /// Transforms of a link going back in a row that make a time jump (fewer are held back undecided).
+  static constexpr int kJumpConfirmations = 3;
+  /// [ns] A sweep further than this from tf's newest time (either way) is never waited for: a clock
+  /// mix-up or an uninitialised stamp, not late tf.
+  static constexpr core::TimeNs kFarNs = 86'400'000'000'000;
+
   /// True when tf answers fixed -> base at both times [ns].
-  bool covers(core::TimeNs first, core::TimeNs last) const;
+  bool covers(core::TimeNs first, core::TimeNs last) const {
+    return coverage(first, last) == Coverage::kCovered;
+  }
+  /// Whether tf answers fixed -> base at both times [ns]; for kNever, `why` (when given) says why.
+  /// Never throws.
+  Coverage coverage(core::TimeNs first, core::TimeNs last, std::string* why = nullptr) const;
+  /// Why tf does not answer fixed -> base over [first, last] [ns], naming the frames and the cause: a
+  /// frame unknown to tf (with the closest known name), a frame with two parents, the frames not
+  /// connected, tf short of the sweep's end (by how much; when the sweep ends after `arrival` [ns, on the
+  /// stamps' clock], a driver stamping late), tf no longer holding the sweep's start.
+  std::string whyNotCovered(core::TimeNs first, core::TimeNs last, core::TimeNs arrival) const;
+  /// Why there is no mount base_frame -> `frame` (normalised): the frame unknown to tf (with the closest
+  /// known name) or not connected to the base.
+  std::string whyNoMount(const std::string& frame) const;
+  /// True while a link's stamps went back and it is not yet told whether time jumped or the
+  /// transforms were stale.
+  bool jumpPending() const { return !backward_.empty(); }
   /// [ns] The newest time tf answers fixed -> base at; 0 when it answers none.
   core::TimeNs newestChainTime() const;
   /// True when a mount for `frame` (normalised) is known or tf has one.
@@ -82,6 +121,16 @@ class TfFeed {
   void setParent(const std::string& child, const std::string& parent);
   std::set<std::string> chainChildren() const;
   void notify(TfEvent event, const std::string& text) const;
+  /// `what` ('fixed_frame', 'the scan frame') is unknown to tf: the text naming it, the closest known
+  /// frame and tf's frames.
+  std::string unknownFrame(const std::string& frame, const std::string& what) const;
+  /// Adds a dynamic transform of the chain's link `child` that went back by more than 1 s; returns
+  /// false when it confirmed a time jump.
+  bool holdBackward(const geometry_msgs::TransformStamped& transform);
+  /// The old time line of `child` went on: its held transforms were stale.
+  void dropStale(const std::string& child, core::TimeNs newest);
+  /// Records parent -> child from /tf; reports a second parent of `child`.
+  void noteDynamicParent(const std::string& child, const std::string& parent, core::TimeNs stamp);
 
   std::string fixed_frame_;
   std::string base_frame_;
@@ -96,6 +145,11 @@ class TfFeed {
   std::set<std::string> ignored_statics_;  // children whose static parent was reported left out
   std::map<std::string, core::TimeNs> newest_link_stamps_;  // [ns] by child frame, links of the chain
   std::map<std::string, mrpt::poses::CPose3D> mounts_;      // the last mount of each scan frame
+  std::map<std::string, int> backward_;                     // by child: its transforms held in a row
+  std::vector<geometry_msgs::TransformStamped> held_;       // the transforms going back, undecided
+  /// By child: its parents on /tf and the newest stamp [ns] of each (two at once: reported).
+  std::map<std::string, std::map<std::string, core::TimeNs>> dynamic_parents_;
+  std::map<std::string, std::string> two_parents_;  // child -> "a and b", each reported once
 };
 
 }  // namespace lidar_deskew::ros_adapter

@@ -105,7 +105,7 @@ geometry_msgs::TransformStamped stamped(const std::string& parent, const std::st
 ///   recorded at its last point's time + latency;
 /// - /tf (tf2_msgs/TFMessage): fixed -> base at tf_rate, the true 3D pose (perfect odometry), from
 ///   0.1 s before the first sweep to 0.1 s after the last sweep's end;
-/// - /tf_static: base -> lidar (the mount), once;
+/// - /tf_static: base -> lidar (the mount), once, latched (writeTfStatic in sim_bag.h);
 /// in time order, and the matching truth file at `truth_path`. Throws on I/O errors.
 void writeCloudBag(const CloudScenario& scenario, const CloudBagOptions& options, const std::string& bag_path,
                    const std::string& truth_path);

@@ -1,6 +1,9 @@
 // Writes a simulated recording as a ROS 1 bag, the way a real robot records one, plus its truth file.
 #pragma once
 
+#include <rosbag/bag.h>
+#include <tf2_msgs/TFMessage.h>
+
 #include <string>
 
 #include "lidar_deskew/sim/scenario.h"
@@ -34,7 +37,7 @@ struct SimBagOptions {
 /// - /tf (tf2_msgs/TFMessage): fixed -> base at tf_rate, the odometry's pose (the true pose unless
 ///   options.odom_noise > 0), from tf_margin before the first scan to tf_margin after the last, both as
 ///   the scans truly are and as their (faulted) messages claim;
-/// - /tf_static: base -> laser (the mount), once;
+/// - /tf_static: base -> laser (the mount), once, latched (writeTfStatic);
 /// - /odom (nav_msgs/Odometry): the same poses with the commanded twist (its speed and yaw rate times
 ///   the step's odometry factors);
 /// and the matching truth file at `truth_path` (the true motion, the fault, the true beam and sweep
@@ -43,5 +46,10 @@ struct SimBagOptions {
 /// odom_noise.
 void writeSimulationBag(const sim::Scenario& scenario, const SimBagOptions& options,
                         const std::string& bag_path, const std::string& truth_path);
+
+/// Writes `transforms` on /tf_static at `time` as `rosbag record` records a latched topic (its
+/// connection header says "latching: 1"), so that `rosbag play` latches it: a node started during the
+/// replay gets the mount at once.
+void writeTfStatic(rosbag::Bag& bag, const ros::Time& time, const tf2_msgs::TFMessage& transforms);
 
 }  // namespace lidar_deskew::sim
