@@ -115,13 +115,13 @@ struct Candidate {
   std::size_t index = 0;             // its nearest fine grid point
 };
 
-Candidate search(const TimingFit& fit, const TimingConfig& timing, double period, double center,
+Candidate search(const TimingFit& fit, const TimingConfig& timing, double period, double center, double range,
                  const TimingFitConfig& config) {
   Candidate candidate;
   candidate.timing = timing;
   candidate.period = period;
   const double step = std::min(config.coarse_step, period / 2.0);
-  candidate.range = std::max(config.search_range, config.search_periods * period);
+  candidate.range = range;
   double best = 0.0;
   for (;;) {
     candidate.coarse =
@@ -464,6 +464,13 @@ TimingEstimate estimateTiming(TimingFit& fit, const TimingFitConfig& config) {
   std::vector<Candidate> candidates;
   std::size_t best = 0;
   std::vector<double> ones;
+  // The first search's window: +-max(search_range, search_periods periods) round the stamp. The second,
+  // round the first's best, need only hold the resamples' minima: a quarter of that, at least 10 steps.
+  bool second = false;
+  const auto range = [&](double period) {
+    const double first = std::max(config.search_range, config.search_periods * period);
+    return second ? std::max(0.25 * first, 10.0 * std::min(config.coarse_step, period / 2.0)) : first;
+  };
   const auto searchAll = [&] {
     candidates.clear();
     for (double period : periods) {
@@ -472,7 +479,7 @@ TimingEstimate estimateTiming(TimingFit& fit, const TimingFitConfig& config) {
         timing.beam_order = order;
         timing.scan_period = period;
         timing.use_scan_period = true;
-        candidates.push_back(search(fit, timing, period, fit.shifted(), config));
+        candidates.push_back(search(fit, timing, period, fit.shifted(), range(period), config));
       }
     }
     // A candidate that cannot place most scans (a sweep longer than the motion covers) is out.
@@ -500,6 +507,7 @@ TimingEstimate estimateTiming(TimingFit& fit, const TimingFitConfig& config) {
       std::abs(candidates[best].offset) > std::min(config.coarse_step, candidates[best].period / 2.0)) {
     fit.shift(candidates[best].offset);
     count();
+    second = true;
     searchAll();
   }
   if (candidates.empty())
@@ -521,7 +529,8 @@ TimingEstimate estimateTiming(TimingFit& fit, const TimingFitConfig& config) {
 
   // Bootstrap over blocks of consecutive scans (a turn's scans share its motion and odometry errors):
   // a resample draws blocks with replacement until it holds as many scans as the recording; a pair
-  // counts as often as its later scan was drawn. Each resample's minimum is sought over the whole
+  // counts as often as both its scans were drawn (the product: each scan's pose error enters every
+  // pair it is in, earlier or later). Each resample's minimum is sought over the whole
   // coarse window, then, when it falls in the fine window, on the fine grid.
   const auto resampledMinimum = [](const Candidate& candidate, const std::vector<double>& weights,
                                    std::size_t& index) {
@@ -550,7 +559,7 @@ TimingEstimate estimateTiming(TimingFit& fit, const TimingFitConfig& config) {
     std::vector<double> weights(pairs.size());
     double total = 0.0;
     for (std::size_t p = 0; p < pairs.size(); ++p)
-      total += weights[p] = drawn[pairs[p].second];
+      total += weights[p] = drawn[pairs[p].first] * drawn[pairs[p].second];
     if (total <= 0.0)
       continue;  // no pair drawn: nothing to say
     std::size_t index = 0, rival_index = 0;

@@ -18,7 +18,7 @@ using namespace lidar_deskew;
 
 /// The coverage table: does the truth lie within 2 sigma of the estimate? Returns 1 when the
 /// coverage of the cases told is below 90 %.
-int coverage(std::size_t count, unsigned seed, const std::string& directory) {
+int coverage(std::size_t count, unsigned seed, const std::string& directory, int only) {
   std::printf(
       "| case | scenario | fault | true offset [ms] | estimated [ms] | error / sigma | within 2 sigma | "
       "order |\n"
@@ -28,6 +28,8 @@ int coverage(std::size_t count, unsigned seed, const std::string& directory) {
   std::map<std::string, std::pair<std::size_t, std::size_t>> by_odometry;  // told, covered
   const auto cases = eval::coverageCases(count, seed);
   for (std::size_t k = 0; k < cases.size(); ++k) {
+    if (only >= 0 && static_cast<std::size_t>(only) != k)
+      continue;
     try {
       const eval::CalibrationRun run = eval::runCalibrationCase(cases[k], directory, false);
       const core::TimingEstimate& estimate = run.calibration.estimate;
@@ -92,7 +94,7 @@ int main(int argc, char** argv) {
     }
   }
   if (coverage_count > 0)
-    return coverage(coverage_count, coverage_seed, directory);
+    return coverage(coverage_count, coverage_seed, directory, only);
   std::printf("%s", eval::calibrationTableHeader().c_str());
   std::fflush(stdout);
   int missed = 0;
