@@ -35,7 +35,7 @@ int usage(const char* program) {
       "          [--seed N] [--tf-rate HZ] [--duration S] [--latency S]\n"
       "  --list              the planar scenarios (LaserScan on /scan): the paper's, then calibration's\n"
       "  --list-paper        the paper's 19, then 5 LDS-01 ones in a small room (docs/RESULTS.md)\n"
-      "  --list-calibration  the turns drives for timing calibration (SENSOR/normal|high/turns)\n"
+      "  --list-calibration  the drives for timing calibration (SENSOR/normal|high/turns, SENSOR/normal/spin|circle)\n"
       "  --list-clouds       the multi-line scenarios (PointCloud2 on /points, frame lidar)\n"
       "  --list-conventions  the drivers' cloud layouts for --convention\n"
       "  --tf-margin S       odometry from S before the first scan to S after the last (default 0.1)\n"
