@@ -501,9 +501,11 @@ TimingEstimate estimateTiming(TimingFit& fit, const TimingFitConfig& config) {
   };
   searchAll();
   estimate.search_range = candidates.empty() ? 0.0 : candidates[best].range;
-  // Found an offset well away from the stamps? Then the scans and pairs are chosen anew as if the
-  // stamps were that much later, and searched again: the same scans and pairs whatever the stamps.
+  // Found an offset well away from the stamps (where one can show at all)? Then the scans and pairs are
+  // chosen anew as if the stamps were that much later, and searched again: the same scans and pairs
+  // whatever the stamps.
   if (!candidates.empty() && !candidates[best].on_edge &&
+      estimate.changing_pairs >= config.min_changing_pairs &&
       std::abs(candidates[best].offset) > std::min(config.coarse_step, candidates[best].period / 2.0)) {
     fit.shift(candidates[best].offset);
     count();
