@@ -96,8 +96,8 @@ std::string describe(const Calibration& calibration) {
   text << calibration.scan_topic << " (frame " << calibration.frame << ", " << calibration.beams
        << " beams): " << estimate.scans << " scans, one every " << number(calibration.stamp_period * 1e3, 3)
        << " ms +- " << number(calibration.stamp_period_sigma * 1e3, 3) << " ms by their stamps\n";
-  text << "  motion: " << estimate.turning_scans << " scans turn at 0.3 rad/s or faster (fastest "
-       << number(estimate.fastest_turn, 2) << " rad/s); " << estimate.pairs
+  text << "  motion: " << estimate.turning_scans << " scans turn at " << number(estimate.turning_rate, 2)
+       << " rad/s or faster (fastest " << number(estimate.fastest_turn, 2) << " rad/s); " << estimate.pairs
        << " overlapping pairs with motion, " << estimate.turning_pairs << " with a turning scan, "
        << estimate.changing_pairs << " whose turn rates differ; odometry every "
        << number(estimate.odometry_interval * 1e3, 0) << " ms\n";

@@ -1,6 +1,7 @@
 // deskew_calibrate: estimates a planar LIDAR's timing from a recording (docs/CALIBRATION.md).
 #include <algorithm>
 #include <cstdio>
+#include <cstdlib>
 #include <exception>
 #include <map>
 #include <string>
@@ -34,6 +35,8 @@ void printUsage(std::FILE* to, const char* program) {
       "  --scan-topic T     the LaserScan topic (default: the bag's only one)\n"
       "  --output FILE      the parameter file to write (default: print only)\n"
       "  --curve FILE       write the score against the offset (CSV) for the chosen order and period\n"
+      "  --turning-rate R   [rad/s] a scan turns when its base turns this fast (default 0.3); the\n"
+      "                     offset needs pairs whose turn rates differ by R, the order turning scans\n"
       "  --fixed-frame F    the frame the base moves in (default odom)\n"
       "  --base-frame B     the robot's base frame (default base_link)\n"
       "  --cloud-topic T    refused: clouds carry their own per-point times (set time_offset by hand)\n"
@@ -61,7 +64,7 @@ int main(int argc, char** argv) {
       return 0;
     }
     if (arg == "--scan-topic" || arg == "--output" || arg == "--fixed-frame" || arg == "--base-frame" ||
-        arg == "--cloud-topic" || arg == "--curve") {
+        arg == "--cloud-topic" || arg == "--curve" || arg == "--turning-rate") {
       if (a + 1 >= argc)
         return usageError(argv[0], arg + " needs a value");
       const std::string value = argv[++a];
@@ -71,7 +74,12 @@ int main(int argc, char** argv) {
         output = value;
       else if (arg == "--curve")
         curve = value;
-      else if (arg == "--fixed-frame")
+      else if (arg == "--turning-rate") {
+        char* end = nullptr;
+        options.fit.turning_rate = std::strtod(value.c_str(), &end);
+        if (end == value.c_str() || *end != '\0' || !(options.fit.turning_rate > 0.0))
+          return usageError(argv[0], "--turning-rate: a positive number of rad/s, got " + value);
+      } else if (arg == "--fixed-frame")
         frames["fixed_frame"] = value;
       else if (arg == "--base-frame")
         frames["base_frame"] = value;

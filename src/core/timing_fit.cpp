@@ -401,6 +401,7 @@ std::string toString(TimingCause cause) {
 
 TimingEstimate estimateTiming(TimingFit& fit, const TimingFitConfig& config) {
   TimingEstimate estimate;
+  estimate.turning_rate = config.turning_rate;
   estimate.message_period = fit.messagePeriod();
   const double nominal = fit.nominalPeriod();
   estimate.period = estimate.message_period > 0.0 ? estimate.message_period : nominal;

@@ -180,6 +180,7 @@ struct TimingEstimate {
   std::size_t changing_pairs = 0;  ///< pairs whose scans' turn rates differ by turning_rate or more
   std::size_t block_scans = 0;     ///< scans per bootstrap block
   double fastest_turn = 0.0;       ///< [rad/s]
+  double turning_rate = 0.0;       ///< [rad/s] TimingFitConfig::turning_rate, as used
   double odometry_interval = 0.0;  ///< [s] TimingFit::odometryInterval()
   ConsistencySummary raw;          ///< every beam at the stamp
   ConsistencySummary before;       ///< corrected with the message's timing (as the node does by default)
