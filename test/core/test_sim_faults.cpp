@@ -308,14 +308,16 @@ TEST(SimFaults, CalibrationScenariosAreListedApart) {
   std::vector<std::string> names;
   for (const Scenario& scenario : calibration)
     names.push_back(scenario.name);
-  EXPECT_EQ(names, (std::vector<std::string>{"ILD26TRI/normal/turns", "ILD26TRI/high/turns",
-                                             "UTM-30LX/normal/turns", "UTM-30LX/high/turns",
-                                             "UTM-30LX-270/normal/turns", "UTM-30LX-270/high/turns",
-                                             "LDS-01/normal/turns", "LDS-01/high/turns"}));
+  EXPECT_EQ(names, (std::vector<std::string>{
+                       "ILD26TRI/normal/turns", "ILD26TRI/high/turns", "UTM-30LX/normal/turns",
+                       "UTM-30LX/high/turns", "UTM-30LX-270/normal/turns", "UTM-30LX-270/high/turns",
+                       "LDS-01/normal/turns", "LDS-01/high/turns", "ILD26TRI/normal/spin",
+                       "ILD26TRI/normal/circle", "UTM-30LX/normal/spin", "UTM-30LX/normal/circle",
+                       "LDS-01/normal/spin", "LDS-01/normal/circle"}));
   EXPECT_EQ(paperScenarios().size(), 24u);
   for (const Scenario& scenario : paperScenarios())
     EXPECT_NE(scenario.motion, "turns") << scenario.name;
-  EXPECT_EQ(planarScenarios().size(), 32u);
+  EXPECT_EQ(planarScenarios().size(), 38u);
   for (const std::string& name : names)
     EXPECT_EQ(findScenario(name).name, name);
   EXPECT_EQ(findScenario("LDS-01/high/turns").lidar.rate, 5.0);
@@ -324,18 +326,27 @@ TEST(SimFaults, CalibrationScenariosAreListedApart) {
 }
 
 /// The "turns" drives: long enough, turn rate changing every 1 to 2 s through standing still, turning
-/// in place both ways, straight lines and arcs, within the speed class; the laser inside the world's
-/// outline and away from every wall at every 0.1 s of the recording (with its odometry margin); most
-/// beams of every scan return.
+/// in place both ways, straight lines and arcs, within the speed class; the steady drives one constant
+/// twist for 12 s (a spin in place, or a circle); for both, the laser inside the world's outline and
+/// away from every wall at every 0.1 s of the recording (with its odometry margin); most beams of every
+/// scan return.
 TEST(SimFaults, TurnsScenariosStayInsideAndSeeTheWalls) {
   for (const Scenario& scenario : calibrationScenarios()) {
     SCOPED_TRACE(scenario.name);
     const bool high = scenario.speed == "high";
-    EXPECT_EQ(scenario.motion, "turns");
+    const bool steady = scenario.motion != "turns";
+    if (steady) {
+      EXPECT_TRUE(scenario.motion == "spin" || scenario.motion == "circle");
+      ASSERT_EQ(scenario.pieces.size(), 1u);
+      EXPECT_EQ(scenario.pieces[0].acceleration, 0.0);
+      EXPECT_NE(scenario.pieces[0].yaw_rate, 0.0);
+      EXPECT_EQ(scenario.pieces[0].speed == 0.0, scenario.motion == "spin");
+      EXPECT_EQ(scenario.duration, 12.0);
+    }
     EXPECT_GE(scenario.duration, 12.0);
     double total = 0.0, max_speed = 0.0, max_turn = 0.0;
     bool still = false, left = false, right = false, straight = false, arc = false;
-    for (std::size_t k = 0; k < scenario.pieces.size(); ++k) {
+    for (std::size_t k = 0; k < scenario.pieces.size() && !steady; ++k) {
       const MotionPiece& piece = scenario.pieces[k];
       EXPECT_GE(piece.duration, 1.0 - 1e-12);
       EXPECT_LE(piece.duration, 2.0 + 1e-12);
@@ -351,14 +362,16 @@ TEST(SimFaults, TurnsScenariosStayInsideAndSeeTheWalls) {
       straight |= piece.speed > 0.0 && piece.yaw_rate == 0.0;
       arc |= piece.speed > 0.0 && piece.yaw_rate != 0.0;
     }
-    EXPECT_NEAR(total, scenario.duration, 1e-9);
-    EXPECT_TRUE(still && left && right && straight && arc);
-    EXPECT_EQ(scenario.pieces.back().speed, 0.0);  // goes on standing still
-    EXPECT_EQ(scenario.pieces.back().yaw_rate, 0.0);
-    EXPECT_LE(max_speed, high ? 2.0 : 1.0);
-    EXPECT_LE(max_turn, high ? 5.0 : 2.0);
-    EXPECT_GE(max_speed, high ? 1.5 : 0.8);
-    EXPECT_GE(max_turn, high ? 4.0 : 2.0);
+    if (!steady) {
+      EXPECT_NEAR(total, scenario.duration, 1e-9);
+      EXPECT_TRUE(still && left && right && straight && arc);
+      EXPECT_EQ(scenario.pieces.back().speed, 0.0);  // goes on standing still
+      EXPECT_EQ(scenario.pieces.back().yaw_rate, 0.0);
+      EXPECT_LE(max_speed, high ? 2.0 : 1.0);
+      EXPECT_LE(max_turn, high ? 5.0 : 2.0);
+      EXPECT_GE(max_speed, high ? 1.5 : 0.8);
+      EXPECT_GE(max_turn, high ? 4.0 : 2.0);
+    }
 
     const PiecewiseTrajectory trajectory = scenario.trajectory();
     const double period = 1.0 / scenario.lidar.rate;
@@ -392,6 +405,10 @@ TEST(SimFaults, TurnsScenariosStayInsideAndSeeTheWalls) {
                 scenario.name.c_str(), scenario.duration, scans, nearest, mean, worst);
     EXPECT_GT(worst, 0.75);
     EXPECT_GT(mean, 0.9);
+    if (steady) {  // every scan at the same turn rate
+      EXPECT_EQ(turn_rates.size(), 1u);
+      continue;
+    }
     // Scans at standing still, both turn directions and several rates.
     EXPECT_GE(turn_rates.size(), 6u);
     EXPECT_EQ(turn_rates.count(0.0), 1u);
