@@ -82,7 +82,7 @@ CloudEvaluation evaluateCloudBag(const std::string& bag_path, const std::string&
     const ros_adapter::PreparedCloud prepared = ours.prepare(cloud);
     std::string error;
     const std::optional<mrpt::poses::CPose3D> mount =
-        tf->mount(ros_adapter::normalizedFrame(cloud->header.frame_id), error);
+        tf->mount(ros_adapter::normalizedFrame(cloud->header.frame_id), prepared.last, error);
     if (!mount)
       throw std::runtime_error(bag_path + ": no mount: " + error);
     const sim::Pose3 reference = truth.sensorPose(prepared.first);

@@ -52,10 +52,12 @@ ConsistencyReport measureConsistency(const std::string& bag_path, const std::str
   // A scan's ranges in the fixed frame, every beam placed with tf at the scan's stamp.
   const auto place = [&](const sensor_msgs::LaserScan& scan) {
     std::string error;
-    const auto mount = tf->mount(ros_adapter::normalizedFrame(scan.header.frame_id), error);
+    const core::TimeNs stamp = toNs(scan.header.stamp);
+    // The mount in force at the stamp (the deskew takes it at the sweep's end: they differ only for a
+    // sweep across a re-published mount's stamp).
+    const auto mount = tf->mount(ros_adapter::normalizedFrame(scan.header.frame_id), stamp, error);
     if (!mount)
       throw std::runtime_error(bag_path + ": no laser mount: " + error);
-    const core::TimeNs stamp = toNs(scan.header.stamp);
     return core::placeRaw(ros_adapter::fromMsg(scan), tf->motion().basePose(stamp) + *mount, stamp);
   };
   std::vector<core::PlacedScan> raw_placed, corrected_placed;

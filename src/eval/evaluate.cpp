@@ -108,7 +108,8 @@ Evaluation evaluateBag(const std::string& bag_path, const std::string& truth_pat
     sensor_msgs::PointCloud2 projected;
     try {
       std::string error;
-      const auto laser_mount = tf->mount(ros_adapter::normalizedFrame(message.header.frame_id), error);
+      const auto laser_mount = tf->mount(ros_adapter::normalizedFrame(message.header.frame_id),
+                                         timing.latestBeamTime(), error);  // in force at the sweep's end
       if (!laser_mount)
         throw std::runtime_error("no laser mount: " + error);
       mount = *laser_mount;

@@ -362,7 +362,10 @@ template <class Processor>
 void SweepPipeline<Processor>::correct(const Pending& pending, bool extrapolate, double now) {
   const auto start = std::chrono::steady_clock::now();
   std::string error;
-  const std::optional<mrpt::poses::CPose3D> mount = tf_.mount(pending.frame, error);
+  // The mount in force at the sweep's end: a re-published /tf_static serves the sweeps ending at or after
+  // its stamp, not those that waited for tf while it arrived.
+  const std::optional<mrpt::poses::CPose3D> mount =
+      tf_.mount(pending.frame, pending.prepared.latest(), error);
   if (!mount) {
     dropForMount(pending, error);
     return;

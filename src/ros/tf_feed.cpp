@@ -3,6 +3,7 @@
 #include <tf2/exceptions.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -72,7 +73,7 @@ bool TfFeed::add(const geometry_msgs::TransformStamped& transform_in, bool is_st
       notify(TfEvent::kBadTransform, "tf2 refused /tf_static " + parent + " -> " + child);
       return true;
     }
-    statics_[child] = transform;
+    recordStatic(transform);
     setParent(child, parent);
     return true;
   }
@@ -82,9 +83,10 @@ bool TfFeed::add(const geometry_msgs::TransformStamped& transform_in, bool is_st
     const auto kept = statics_.find(child);
     if (kept != statics_.end()) {
       ignored_statics_.insert(child);
-      notify(TfEvent::kStaticIgnored, "ignoring /tf_static " + kept->second.header.frame_id + " -> " + child +
-                                          " (" + describePose(toPose(kept->second.transform)) +
-                                          "): " + child + " moves on /tf (from " + parent + ", " +
+      const StaticLink& newest = kept->second.back();
+      notify(TfEvent::kStaticIgnored, "ignoring /tf_static " + newest.transform.header.frame_id + " -> " +
+                                          child + " (" + describePose(newest.pose) + "): " + child +
+                                          " moves on /tf (from " + parent + ", " +
                                           describePose(toPose(transform.transform)) + ")");
       rebuildWithout(child);
     }
@@ -189,8 +191,8 @@ void TfFeed::rebuildWithout(const std::string& child) {
   // dynamic history is lost then, once for each such frame, when it is first seen moving (normally at
   // start-up).
   auto rebuilt = std::make_unique<tf2::BufferCore>(cache_time_);
-  for (const auto& [frame, transform] : statics_)
-    rebuilt->setTransform(transform, "tf_static", true);
+  for (const auto& [frame, history] : statics_)
+    rebuilt->setTransform(history.back().transform, "tf_static", true);
   buffer_ = std::move(rebuilt);
   motion_.setBuffer(*buffer_);
   motion_.clearSampleTimes();
@@ -343,18 +345,129 @@ bool TfFeed::mountKnown(const std::string& frame) const {
   }
 }
 
-std::optional<mrpt::poses::CPose3D> TfFeed::mount(const std::string& frame, std::string& error) {
-  // Looked up for every scan (about a microsecond): a re-published /tf_static (recalibration) or a
-  // mount on /tf is followed from the next scan on. The newest value serves the whole sweep.
+void TfFeed::recordStatic(const geometry_msgs::TransformStamped& transform) {
+  std::vector<StaticLink>& history = statics_[transform.child_frame_id];
+  const core::TimeNs stamp = toNs(transform.header.stamp);
+  // The newest publication holds from its stamp on: those stamped at or after it are superseded (a
+  // static re-sent stamped 0 replaces them all; a bag played again re-sends its statics).
+  history.erase(std::lower_bound(history.begin(), history.end(), stamp,
+                                 [](const StaticLink& link, core::TimeNs t) { return link.stamp < t; }),
+                history.end());
+  StaticLink link;
+  link.stamp = stamp;
+  link.transform = transform;
+  link.pose = toPose(transform.transform);
+  if (!history.empty() && history.back().transform.header.frame_id == transform.header.frame_id &&
+      samePose(history.back().pose, link.pose)) {
+    history.back().transform = transform;  // the same link again: nothing changes (tf2 gets the newest)
+    return;
+  }
+  // Publications whose time is over (a next one stamped more than the cache time before this one) can
+  // serve no sweep still to come: a static re-published at a rate stays bounded.
+  const core::TimeNs horizon = stamp - static_cast<core::TimeNs>(cache_time_.toNSec());
+  const auto over = std::upper_bound(history.begin(), history.end(), horizon,
+                                     [](core::TimeNs t, const StaticLink& l) { return t < l.stamp; });
+  if (over != history.begin())
+    history.erase(history.begin(), std::prev(over));
+  history.push_back(std::move(link));
+}
+
+TfFeed::Link TfFeed::linkAt(const std::string& child, core::TimeNs time, const std::string*& parent,
+                            mrpt::poses::CPose3D& pose) const {
+  if (moving_.count(child) > 0) {
+    const auto known = parents_.find(child);
+    if (known == parents_.end())
+      return Link::kFailed;
+    parent = &known->second;
+    // At the sweep's end; tf's newest when it has not reached it (a mount on /tf is not waited for).
+    // Asked first, so that the usual miss throws nothing.
+    try {
+      ros::Time at = toRosTime(time);
+      if (!buffer_->canTransform(*parent, child, at))
+        at = ros::Time(0);
+      pose = toPose(buffer_->lookupTransform(*parent, child, at).transform);
+      return Link::kFound;
+    } catch (const std::exception&) {  // tf2's, or ros::Time's
+      return Link::kFailed;
+    }
+  }
+  const auto kept = statics_.find(child);
+  if (kept == statics_.end())
+    return Link::kRoot;
+  const std::vector<StaticLink>& history = kept->second;
+  // The last publication stamped at or before `time`; the first when none is (a mount that arrived
+  // late serves the sweeps that waited for it). Time 0: the newest.
+  auto in_force = time == 0
+                      ? history.end()
+                      : std::upper_bound(history.begin(), history.end(), time,
+                                         [](core::TimeNs t, const StaticLink& l) { return t < l.stamp; });
+  if (in_force != history.begin())
+    --in_force;
+  parent = &in_force->transform.header.frame_id;
+  pose = in_force->pose;
+  return Link::kFound;
+}
+
+bool TfFeed::mountAt(const std::string& frame, core::TimeNs time, mrpt::poses::CPose3D& mount) const {
+  // Up from the scan's frame (poses of it in each ancestor) until the base; failing that, up from the
+  // base until a frame of the first walk: the two meet there. Fixed arrays: no allocation.
+  constexpr std::size_t kDepth = 16;
+  std::array<const std::string*, kDepth> frames{};
+  std::array<mrpt::poses::CPose3D, kDepth> in;  // in[k]: the scan frame in frames[k]
+  frames[0] = &frame;
+  std::size_t count = 1;
+  const std::string* parent = nullptr;
+  mrpt::poses::CPose3D link;
+  for (;;) {
+    if (*frames[count - 1] == base_frame_) {
+      mount = in[count - 1];
+      return true;
+    }
+    if (count == kDepth)
+      return false;
+    const Link found = linkAt(*frames[count - 1], time, parent, link);
+    if (found == Link::kFailed)
+      return false;
+    if (found == Link::kRoot)
+      break;
+    frames[count] = parent;
+    in[count] = link + in[count - 1];
+    ++count;
+  }
+  const std::string* ancestor = &base_frame_;
+  mrpt::poses::CPose3D base;  // the base in `ancestor`
+  for (std::size_t step = 0; step < kDepth; ++step) {
+    for (std::size_t k = 0; k < count; ++k) {
+      if (*frames[k] == *ancestor) {
+        mount = in[k] - base;
+        return true;
+      }
+    }
+    if (linkAt(*ancestor, time, parent, link) != Link::kFound)
+      return false;
+    ancestor = parent;
+    base = link + base;
+  }
+  return false;
+}
+
+std::optional<mrpt::poses::CPose3D> TfFeed::mount(const std::string& frame, core::TimeNs time,
+                                                  std::string& error) {
+  // Looked up for every sweep: a re-published /tf_static (recalibration) serves the sweeps that end at
+  // or after its stamp, however late it arrives; a mount on /tf is taken at the sweep's end. One value
+  // serves the whole sweep.
   const auto known = mounts_.find(frame);
   mrpt::poses::CPose3D mount;
-  try {
-    mount = toPose(buffer_->lookupTransform(base_frame_, frame, ros::Time(0)).transform);
-  } catch (const std::exception& lookup_error) {  // tf2's, or ros::Time's
-    if (known != mounts_.end())                   // the tf cache was cleared (time jump): keep the last mount
-      return known->second;
-    error = lookup_error.what();
-    return std::nullopt;
+  if (!mountAt(frame, time, mount)) {
+    // The histories do not connect the frames at `time` (a static re-parented since): tf2's newest.
+    try {
+      mount = toPose(buffer_->lookupTransform(base_frame_, frame, ros::Time(0)).transform);
+    } catch (const std::exception& lookup_error) {  // tf2's, or ros::Time's
+      if (known != mounts_.end())  // the tf cache was cleared (time jump): keep the last mount
+        return known->second;
+      error = lookup_error.what();
+      return std::nullopt;
+    }
   }
   if (known != mounts_.end() && samePose(known->second, mount))
     return mount;

@@ -177,8 +177,12 @@ Scenario clockwiseVariant(Scenario scenario) {
   return scenario;
 }
 
+Pose2 Truth::mountAt(core::TimeNs time) const {
+  return mount_change && core::nsToSeconds(time - epoch) >= mount_change->time ? mount_change->mount : mount;
+}
+
 Pose2 Truth::laserPose(core::TimeNs time) const {
-  return trajectory().pose(core::nsToSeconds(time - epoch)).compose(mount);
+  return trajectory().pose(core::nsToSeconds(time - epoch)).compose(mountAt(time));
 }
 
 core::TimeNs Truth::beamTime(core::TimeNs stamp, std::size_t index, std::size_t beams) const {
@@ -194,6 +198,10 @@ void writeTruth(const Truth& truth, const std::string& path) {
   out << "epoch_ns " << truth.epoch << "\n";
   out << "range_sigma " << truth.range_sigma << "\n";
   out << "mount " << truth.mount.x << " " << truth.mount.y << " " << truth.mount.yaw << "\n";
+  if (const auto& change = truth.mount_change) {
+    out << "mount_change " << change->time << " " << change->mount.x << " " << change->mount.y << " "
+        << change->mount.yaw << "\n";
+  }
   out << "time_offset " << truth.timeOffset() << "\n";
   out << "reversed " << (truth.timing_fault.reversed ? 1 : 0) << "\n";
   out << "time_increment_factor " << truth.timing_fault.time_increment_factor << "\n";
@@ -224,6 +232,11 @@ Truth readTruth(const std::string& path) {
       return static_cast<bool>(fields >> truth.range_sigma);
     if (key == "mount")
       return static_cast<bool>(fields >> truth.mount.x >> truth.mount.y >> truth.mount.yaw);
+    if (key == "mount_change") {
+      truth.mount_change.emplace();
+      return static_cast<bool>(fields >> truth.mount_change->time >> truth.mount_change->mount.x >>
+                               truth.mount_change->mount.y >> truth.mount_change->mount.yaw);
+    }
     if (key == "time_offset") {
       double time_offset;
       const bool ok = static_cast<bool>(fields >> time_offset);

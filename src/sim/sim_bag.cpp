@@ -104,12 +104,26 @@ void writeSimulationBag(const sim::Scenario& scenario, const SimBagOptions& opti
     bag.write("/odom", toRosTime(at(t)), odometry);
   };
 
+  const std::optional<MountChange>& change = options.mount_change;
+  if (change && !std::isfinite(change->time))
+    throw std::invalid_argument("mount_change: its time must be finite");
+  bool mount_changed = false;
+  const auto writeMountChange = [&] {
+    tf2_msgs::TFMessage transforms;
+    transforms.transforms.push_back(
+        stamped(options.base_frame, options.laser_frame, at(change->time), change->mount));
+    writeTfStatic(bag, toRosTime(at(change->time)), transforms);
+    mount_changed = true;
+  };
+
   std::mt19937 rng(options.seed);
   const auto writeScan = [&](int k) {
     const double start_time = k * scan_period;
+    // The mount in force at the sweep's last beam.
+    const bool changed = change && start_time + scenario.lidar.sweepDuration() >= change->time;
     const sim::SimulatedScan simulated =
-        sim::simulateScan(world, trajectory, scenario.mount, scenario.lidar, epoch, start_time,
-                          options.noise ? &rng : nullptr, fault);
+        sim::simulateScan(world, trajectory, changed ? change->mount : scenario.mount, scenario.lidar, epoch,
+                          start_time, options.noise ? &rng : nullptr, fault);
     const core::PlanarScan& planar = simulated.scan;
     sensor_msgs::LaserScan scan;
     scan.header.seq = static_cast<uint32_t>(k);
@@ -133,12 +147,22 @@ void writeSimulationBag(const sim::Scenario& scenario, const SimBagOptions& opti
   for (int k = 0; k < scans; ++k) {
     // When the scan is recorded [s]: see writeScan.
     const double recorded = std::max((k + 1) * scan_period, k * scan_period + fault.stamp_error);
-    while (next_odometry <= tf_samples && tfTime(next_odometry) <= recorded)
+    while (next_odometry <= tf_samples && tfTime(next_odometry) <= recorded) {
+      if (change && !mount_changed && change->time < tfTime(next_odometry))
+        writeMountChange();
       writeOdometry(next_odometry++);
+    }
+    if (change && !mount_changed && change->time < recorded)
+      writeMountChange();  // before the scan recorded after it (after one recorded at its time)
     writeScan(k);
   }
-  while (next_odometry <= tf_samples)
+  while (next_odometry <= tf_samples) {
+    if (change && !mount_changed && change->time < tfTime(next_odometry))
+      writeMountChange();
     writeOdometry(next_odometry++);
+  }
+  if (change && !mount_changed)
+    writeMountChange();
   bag.close();
 
   sim::Truth truth;
@@ -146,6 +170,7 @@ void writeSimulationBag(const sim::Scenario& scenario, const SimBagOptions& opti
   truth.epoch = epoch;
   truth.range_sigma = options.noise ? scenario.lidar.range_sigma : 0.0;
   truth.mount = scenario.mount;
+  truth.mount_change = change;
   truth.start = scenario.start;
   truth.pieces = scenario.pieces;
   truth.world = world;

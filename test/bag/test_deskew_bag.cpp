@@ -457,6 +457,57 @@ TEST(DeskewBag, MountRepublishedMidRecordingServesTheScansAfterIt) {
   std::remove(output.c_str());
 }
 
+// The simulator's recording with a recalibrated mount (issue 24): /tf_static re-published stamped 1.25 ms
+// after scan 9's last beam and recorded before it (scan 9 is recorded at its revolution's end). Scan 9 is
+// processed after the new mount arrived, yet ended before its stamp: the old mount serves it, the new
+// one scan 10 on. Truth in closed form: each scan cast with the mount in force at its last beam.
+TEST(DeskewBag, MountChangeServesTheScansEndingAfterItsStamp) {
+  sim::Scenario scenario = sim::findScenario("UTM-30LX-270/high/arc");  // a 90 deg blind sector
+  const double period = 1.0 / scenario.lidar.rate;
+  SimBagOptions sim_options;
+  sim_options.mount_change = sim::MountChange{9 * period + scenario.lidar.sweepDuration() + 1.25e-3,
+                                              {0.10, -0.20, 0.5}};  // moved 0.26 m and turned 0.4 rad
+  const std::string input = temporary("mount_change.bag"), truth_path = temporary("mount_change.truth"),
+                    output = temporary("mount_change_out.bag");
+  writeSimulationBag(scenario, sim_options, input, truth_path);
+  const sim::Truth truth = sim::readTruth(truth_path);
+  ASSERT_TRUE(truth.mount_change);
+  EXPECT_EQ(truth.mount_change->time, sim_options.mount_change->time);
+  // As recorded: the new mount comes before scan 9.
+  {
+    rosbag::Bag bag(input, rosbag::bagmode::Read);
+    std::vector<std::string> order;
+    for (const rosbag::MessageInstance& message :
+         rosbag::View(bag, rosbag::TopicQuery(std::vector<std::string>{"/scan", "/tf_static"})))
+      order.push_back(message.getTopic());
+    ASSERT_EQ(order.size(), 22u);
+    EXPECT_EQ(order[10], "/tf_static");  // after the first static and scans 0 to 8
+    EXPECT_EQ(order[11], "/scan");
+  }
+  BagDeskewOptions options;
+  options.input = input;
+  options.output = output;
+  const BagDeskewSummary summary = deskewBag(options);
+  EXPECT_EQ(summary.counters.at("/scan").published, 20u);
+  EXPECT_EQ(summary.counters.at("/scan").mount_changes, 1u);
+  const auto clouds = read<sensor_msgs::PointCloud2>(output, "/scan_deskewed_points");
+  ASSERT_EQ(clouds.size(), 20u);
+  for (std::size_t k = 0; k < clouds.size(); ++k) {
+    const sensor_msgs::PointCloud2& cloud = *clouds[k];
+    const core::TimeNs stamp = toNs(cloud.header.stamp);  // the reference time: the first beam
+    std::vector<double> distances;
+    for (sensor_msgs::PointCloud2ConstIterator<float> x(cloud, "x"), y(cloud, "y"); x != x.end(); ++x, ++y)
+      distances.push_back(truth.world.distanceTo(truth.laserPose(stamp).apply({*x, *y})));
+    const double error = sim::errorStats(distances).rms;
+    if (k == 9 || k == 10)
+      std::printf("scan %zu (%s mount): %.4f mm RMS\n", k, k < 10 ? "old" : "new", 1e3 * error);
+    EXPECT_GT(distances.size(), 900u) << k;
+    EXPECT_LT(error, 1e-3) << k;  // noise off; scan 9 corrected with the new mount: 26.5 mm
+  }
+  for (const std::string& path : {input, truth_path, output})
+    std::remove(path.c_str());
+}
+
 // Ordinary trees (docs/FAULTS.md): REP-105 (a static base_footprint -> base_link under a moving
 // base_footprint), a mount through a plate, the laser frame as the base frame, leading slashes.
 TEST(DeskewBag, OrdinaryTreesAreCorrectedOntoTheTrueWalls) {

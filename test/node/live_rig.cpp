@@ -106,11 +106,11 @@ void LiveRig::publishMount() {
   setMount(mount);
 }
 
-void LiveRig::setMount(const sim::Pose2& new_mount) {
+void LiveRig::setMount(const sim::Pose2& new_mount, double t) {
   mount = new_mount;
   // All static links in one latched message: moving -> base, base -> (plate ->) laser.
   tf2_msgs::TFMessage message;
-  message.transforms = staticLinks(tree_, mount, epoch_);
+  message.transforms = staticLinks(tree_, mount, stampOf(t));
   tf_static_publisher_.publish(message);
 }
 
@@ -197,7 +197,12 @@ double LiveRig::secondsOf(const ros::Time& stamp) const {
 }
 
 std::vector<double> cloudDistances(const LiveRig& rig, const sensor_msgs::PointCloud2& cloud) {
-  const sim::Pose2 laser = rig.trajectory.pose(rig.secondsOf(cloud.header.stamp)).compose(rig.mount);
+  return cloudDistances(rig, cloud, rig.mount);
+}
+
+std::vector<double> cloudDistances(const LiveRig& rig, const sensor_msgs::PointCloud2& cloud,
+                                   const sim::Pose2& mount) {
+  const sim::Pose2 laser = rig.trajectory.pose(rig.secondsOf(cloud.header.stamp)).compose(mount);
   std::vector<double> distances;
   for (sensor_msgs::PointCloud2ConstIterator<float> x(cloud, "x"), y(cloud, "y"); x != x.end(); ++x, ++y) {
     distances.push_back(rig.world.distanceTo(laser.apply({*x, *y})));

@@ -43,9 +43,10 @@ class LiveRig {
 
   /// Waits until the deskew is connected to /tf and /tf_static, then publishes base_link -> laser.
   void publishMount();
-  /// Publishes a new mount on /tf_static (as a recalibration would), through the tree's static links;
-  /// later scans use it.
-  void setMount(const sim::Pose2& new_mount);
+  /// Publishes a new mount on /tf_static (as a recalibration would), through the tree's static links,
+  /// stamped at t [s] (default: t = 0, so it serves every scan corrected from now on); scans ending at
+  /// or after that stamp use it.
+  void setMount(const sim::Pose2& new_mount, double t = 0.0);
   /// Publishes parent -> child on /tf_static, stamped at t = 0 (only this transform in the message).
   void publishStatic(const std::string& parent, const std::string& child, const sim::Pose2& pose);
   /// odom -> base_link samples every 20 ms from the last published one up to t [s] (inclusive).
@@ -108,6 +109,9 @@ bool testFlag(const std::string& name);
 /// Distances [m] of the corrected cloud's points, and of the corrected scan's beam endpoints, to the
 /// true walls, placed with the laser's true pose at the output stamp (the reference time).
 std::vector<double> cloudDistances(const LiveRig& rig, const sensor_msgs::PointCloud2& cloud);
+/// The same with the laser at `mount` on the base (not the rig's current one).
+std::vector<double> cloudDistances(const LiveRig& rig, const sensor_msgs::PointCloud2& cloud,
+                                   const sim::Pose2& mount);
 std::vector<double> scanDistances(const LiveRig& rig, const sensor_msgs::LaserScan& scan);
 /// Distances [m] of the raw scan's beam endpoints to the true walls, drawn from the laser's true pose
 /// at the scan's start `start` [s] as if the robot stood still (what the correction removes).

@@ -140,6 +140,38 @@ TEST(ScanPipeline, RepublishedMountServesTheScansAfterIt) {
   EXPECT_LT(rms(run.cloudDistances()), 1e-3);  // with the old mount: decimetres
 }
 
+// The case: a scan waits for tf, and meanwhile /tf_static arrives with a new mount stamped after
+// that scan's sweep (at the next scan's first beam). The waiting scan keeps the mount in force at its
+// end; the scans after the stamp get the new one.
+TEST(ScanPipeline, RepublishedMountServesTheScansEndingAfterItsStamp) {
+  PipelineRun run{Drive()};
+  const Drive old_drive = run.drive;  // the truth of the scans before the change
+  run.statics(0.0);
+  run.tfUntil(0.05);
+  for (int k = 0; k < 4; ++k)
+    run.scan(0.1 + k * 0.025);
+  const double waiting = 0.2;  // its sweep ends 0.02 ms before the next scan's first beam
+  run.pipeline.add(run.drive.scanAt(waiting), waiting + 0.025);
+  EXPECT_EQ(run.pipeline.waiting(), 1u);  // tf ends at 0.22
+  run.drive.mount = {0.10, -0.20, 0.5};   // moved 0.26 m and turned 0.4 rad
+  run.pipeline.addTransforms(staticLinks(run.drive.tree, run.drive.mount, run.drive.stampOf(waiting + 0.025)),
+                             true, waiting + 0.026);
+  run.tfUntil(waiting + 0.05);
+  for (int k = 5; k < 8; ++k)
+    run.scan(0.1 + k * 0.025);
+  ASSERT_EQ(run.results.size(), 8u);
+  EXPECT_EQ(run.pipeline.counters().mount_changes, 1u);
+  for (std::size_t k = 0; k < run.results.size(); ++k) {
+    const PipelineResult& result = run.results[k];
+    const Drive& truth = k < 5 ? old_drive : run.drive;
+    const double error =
+        rms(truth.distances(result.outputs.cloud->points, result.outputs.scan->header.stamp));
+    if (k == 4 || k == 5)
+      std::printf("scan %zu (%s mount): %.3f mm RMS\n", k, k < 5 ? "old" : "new", 1e3 * error);
+    EXPECT_LT(error, 1e-3) << k;  // the waiting scan with the new mount: 32 mm
+  }
+}
+
 // Waiting is measured on the owner's clock: a scan waits up to tf_timeout for tf, then fails.
 TEST(ScanPipeline, ScansWaitOnTheOwnersClockThenFail) {
   for (const auto failure : {ros_adapter::OnTfFailure::kDrop, ros_adapter::OnTfFailure::kPassThrough}) {

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <optional>
 
 #include "lidar_deskew/ros/conversions.h"
 #include "lidar_deskew/ros/tf_feed.h"
@@ -94,6 +95,96 @@ TEST(TfFeed, LeadingSlashesAreNormalised) {
   ASSERT_TRUE(mount) << error;
   EXPECT_NEAR(mount->x(), 0.25, 1e-12);
   EXPECT_NEAR(mount->yaw(), 0.1, 1e-12);
+}
+
+/// Expects `pose` (x, y, yaw) to be `truth` within 1e-9.
+void expectPose(const std::optional<mrpt::poses::CPose3D>& pose, const sim::Pose2& truth, const char* what) {
+  ASSERT_TRUE(pose) << what;
+  EXPECT_NEAR(pose->x(), truth.x, 1e-9) << what;
+  EXPECT_NEAR(pose->y(), truth.y, 1e-9) << what;
+  EXPECT_NEAR(std::remainder(pose->yaw() - truth.yaw, 2 * M_PI), 0.0, 1e-9) << what;
+}
+
+// A mount re-published on /tf_static (a recalibration) holds from its stamp on: a sweep ending before
+// it keeps the old one, whenever it is served. The first publication serves earlier sweeps too (a
+// static stamped 0; a mount that came late), and one stamped 0 re-sent later replaces them all.
+TEST(TfFeed, MountInForceAtTheSweepsEnd) {
+  const sim::Pose2 old_mount{0.25, 0.05, 0.1}, new_mount{0.10, -0.20, 0.5}, zero_mount{-0.3, 0.1, -1.0};
+  Fed fed;
+  fed.feed.add(stamped("base_link", "laser", kDrive.stampOf(0.0), old_mount), true);
+  for (int k = 0; k <= 100; ++k)
+    fed.feed.add(kDrive.motionAt(0.02 * k), false);
+  fed.feed.add(stamped("base_link", "laser", kDrive.stampOf(1.0), new_mount), true);
+  std::string error;
+  expectPose(fed.feed.mount("laser", at(0.5), error), old_mount, "0.5 s");
+  expectPose(fed.feed.mount("laser", at(1.0) - 1, error), old_mount, "1 ns before the change");
+  expectPose(fed.feed.mount("laser", at(1.0), error), new_mount, "at the change");
+  expectPose(fed.feed.mount("laser", at(1.5), error), new_mount, "1.5 s");
+  expectPose(fed.feed.mount("laser", 0, error), new_mount, "the newest");
+  expectPose(fed.feed.mount("laser", error), new_mount, "the newest");
+  EXPECT_EQ(fed.events[TfEvent::kMountFirst], 1);
+  EXPECT_EQ(fed.events[TfEvent::kMountChanged], 1);
+  // tf2's own answer is the newest (what every sweep used to get).
+  expectPose(
+      ros_adapter::toPose(fed.feed.buffer().lookupTransform("base_link", "laser", ros::Time(0)).transform),
+      new_mount, "tf2");
+  // The same mount again, stamped later: nothing changes.
+  fed.feed.add(stamped("base_link", "laser", kDrive.stampOf(1.8), new_mount), true);
+  expectPose(fed.feed.mount("laser", at(1.9), error), new_mount, "re-sent");
+  EXPECT_EQ(fed.events[TfEvent::kMountChanged], 1);
+  // Re-sent stamped 0 (unset): from the beginning, the later ones superseded.
+  geometry_msgs::TransformStamped unset = stamped("base_link", "laser", kDrive.stampOf(0.0), zero_mount);
+  unset.header.stamp = ros::Time(0);
+  fed.feed.add(unset, true);
+  expectPose(fed.feed.mount("laser", at(0.5), error), zero_mount, "stamped 0, at 0.5 s");
+  expectPose(fed.feed.mount("laser", at(1.9), error), zero_mount, "stamped 0, at 1.9 s");
+
+  // The first mount arriving stamped after a sweep serves it (the sweep waited for it).
+  Fed late;
+  late.feed.add(stamped("base_link", "laser", kDrive.stampOf(1.0), new_mount), true);
+  expectPose(late.feed.mount("laser", at(0.5), error), new_mount, "late");
+}
+
+// The same rule through a chain: base_link -> plate changes at 1 s, plate -> laser stays; and with the
+// base below the moving frame and the laser beside it (base_footprint -> base_link and
+// base_footprint -> laser, both static), the laser's link changing at 1 s.
+TEST(TfFeed, MountInForceThroughChains) {
+  const sim::Pose2 plate_old{0.1, -0.05, 0.3}, plate_new{0.2, 0.05, -0.2}, laser_on_plate{0.15, 0.1, 0.2};
+  Fed plate;
+  plate.feed.add(stamped("base_link", "plate", kDrive.stampOf(0.0), plate_old), true);
+  plate.feed.add(stamped("plate", "laser", kDrive.stampOf(0.0), laser_on_plate), true);
+  plate.feed.add(stamped("base_link", "plate", kDrive.stampOf(1.0), plate_new), true);
+  std::string error;
+  expectPose(plate.feed.mount("laser", at(0.9), error), plate_old.compose(laser_on_plate), "plate, old");
+  expectPose(plate.feed.mount("laser", at(1.1), error), plate_new.compose(laser_on_plate), "plate, new");
+
+  const sim::Pose2 base_offset{0.05, 0.02, 0.1}, laser_old{0.3, 0.0, 0.0}, laser_new{0.3, 0.1, 0.4};
+  Fed beside(10.0, "odom", "base_link");
+  beside.feed.add(stamped("base_footprint", "base_link", kDrive.stampOf(0.0), base_offset), true);
+  beside.feed.add(stamped("base_footprint", "laser", kDrive.stampOf(0.0), laser_old), true);
+  beside.feed.add(stamped("base_footprint", "laser", kDrive.stampOf(1.0), laser_new), true);
+  for (int k = 0; k <= 100; ++k)
+    beside.feed.add(
+        stamped("odom", "base_footprint", kDrive.stampOf(0.02 * k), kDrive.trajectory.pose(0.02 * k)), false);
+  const auto in_base = [&](const sim::Pose2& laser) {
+    const Eigen::Vector2d origin = base_offset.applyInverse({0.0, 0.0});
+    return sim::Pose2{origin.x(), origin.y(), -base_offset.yaw}.compose(laser);
+  };
+  expectPose(beside.feed.mount("laser", at(0.9), error), in_base(laser_old), "beside, old");
+  expectPose(beside.feed.mount("laser", at(1.1), error), in_base(laser_new), "beside, new");
+}
+
+// A mount on /tf (a moving joint) is time-stamped already: taken at the sweep's end, tf's newest when
+// it has not reached that.
+TEST(TfFeed, MountOnTfIsTakenAtTheSweepsEnd) {
+  Fed fed;
+  for (int k = 0; k <= 100; ++k)
+    fed.feed.add(kDrive.motionAt(0.02 * k), false);
+  fed.feed.add(stamped("base_link", "laser", kDrive.stampOf(0.0), {0.2, 0.0, 0.0}), false);
+  fed.feed.add(stamped("base_link", "laser", kDrive.stampOf(1.0), {0.4, 0.0, 0.0}), false);
+  std::string error;
+  expectPose(fed.feed.mount("laser", at(0.25), error), {0.25, 0.0, 0.0}, "between its samples");
+  expectPose(fed.feed.mount("laser", at(1.5), error), {0.4, 0.0, 0.0}, "after its newest");
 }
 
 // Time going back by more than 1 s on the chain clears the cache once; the mount is kept.

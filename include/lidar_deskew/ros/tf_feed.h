@@ -54,8 +54,13 @@ enum class Coverage {
 ///   here: a transform refused, a time tf cannot take.
 /// - Transforms tf2 refuses (or that have empty or equal frame ids, non-finite values) are reported
 ///   and leave no trace.
-/// - The mount base_frame -> scan frame is the newest tf has (any chain, identity when the scan frame
-///   is the base frame); kept when a time jump clears it.
+/// - The mount base_frame -> scan frame (any chain, identity when the scan frame is the base frame) is
+///   the one in force at the sweep's end: each /tf_static publication of a link is kept with its stamp
+///   and holds from that stamp until the next publication's (the first one also before its stamp, so
+///   a static stamped 0, or a mount arriving late, serves every sweep); a link on /tf is looked up at
+///   the sweep's end (its newest when tf has not reached that yet). A publication supersedes the
+///   link's publications stamped at or after its own stamp (a re-sent static stamped 0 replaces them
+///   all). The last mount used is kept when a time jump clears the dynamic tf.
 /// Not thread-safe.
 class TfFeed {
  public:
@@ -102,9 +107,14 @@ class TfFeed {
   core::TimeNs newestChainTime() const;
   /// True when a mount for `frame` (normalised) is known or tf has one.
   bool mountKnown(const std::string& frame) const;
-  /// The mount of `frame` (normalised), reporting the first one and changes; nullopt with `error` set
-  /// when tf has none.
-  std::optional<mrpt::poses::CPose3D> mount(const std::string& frame, std::string& error);
+  /// The mount of `frame` (normalised) in force at `time` [ns] (the sweep's end; 0: the newest),
+  /// reporting the first one and changes; nullopt with `error` set when tf has none. No allocation
+  /// when the mount's links are all static.
+  std::optional<mrpt::poses::CPose3D> mount(const std::string& frame, core::TimeNs time, std::string& error);
+  /// The newest mount of `frame`: mount(frame, 0, error).
+  std::optional<mrpt::poses::CPose3D> mount(const std::string& frame, std::string& error) {
+    return mount(frame, 0, error);
+  }
 
   const TfMotionSource& motion() const { return motion_; }
   const tf2::BufferCore& buffer() const { return *buffer_; }
@@ -124,6 +134,21 @@ class TfFeed {
   /// `what` ('fixed_frame', 'the scan frame') is unknown to tf: the text naming it, the closest known
   /// frame and tf's frames.
   std::string unknownFrame(const std::string& frame, const std::string& what) const;
+  /// One /tf_static publication of a link.
+  struct StaticLink {
+    core::TimeNs stamp = 0;  ///< [ns] in force from here until the next publication's stamp
+    geometry_msgs::TransformStamped transform;  ///< as given (frames normalised)
+    mrpt::poses::CPose3D pose;                  ///< the child in the parent
+  };
+  enum class Link { kRoot, kFound, kFailed };
+  /// The link above `child` at `time` [ns] (0: the newest): its parent and the child's pose in it.
+  Link linkAt(const std::string& child, core::TimeNs time, const std::string*& parent,
+              mrpt::poses::CPose3D& pose) const;
+  /// The pose of `frame` in base_frame at `time` [ns] from the links' histories; false when they do not
+  /// connect the two (or a /tf link has nothing).
+  bool mountAt(const std::string& frame, core::TimeNs time, mrpt::poses::CPose3D& mount) const;
+  /// Records a /tf_static publication in its child's history.
+  void recordStatic(const geometry_msgs::TransformStamped& transform);
   /// Adds a dynamic transform of the chain's link `child` that went back by more than 1 s; returns
   /// false when it confirmed a time jump.
   bool holdBackward(const geometry_msgs::TransformStamped& transform);
@@ -138,9 +163,10 @@ class TfFeed {
   Notify notify_;
   std::unique_ptr<tf2::BufferCore> buffer_;
   TfMotionSource motion_;
-  std::map<std::string, geometry_msgs::TransformStamped> statics_;  // child -> the static kept for it
-  std::map<std::string, std::string> parents_;                      // child -> parent, as last seen
-  std::set<std::string> moving_;                                    // children of dynamic transforms
+  /// child -> its /tf_static publications kept, in stamp order (the last one is tf2's).
+  std::map<std::string, std::vector<StaticLink>> statics_;
+  std::map<std::string, std::string> parents_;  // child -> parent, as last seen
+  std::set<std::string> moving_;                // children of dynamic transforms
   std::set<std::string> chain_;  // the moving frames from base_frame up to fixed_frame (chainChildren)
   std::set<std::string> ignored_statics_;  // children whose static parent was reported left out
   std::map<std::string, core::TimeNs> newest_link_stamps_;  // [ns] by child frame, links of the chain

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -54,6 +55,13 @@ Scenario findScenario(const std::string& name);
 /// The same experiment with the sensor turning clockwise (negative angle increment); name + "/clockwise".
 Scenario clockwiseVariant(Scenario scenario);
 
+/// The laser's mount changed (re-published on /tf_static, as after a recalibration): the sweeps that end
+/// at or after `time` [s since t = 0] were taken with `mount`.
+struct MountChange {
+  double time = 0.0;
+  Pose2 mount;
+};
+
 /// What the metrics need to know about a simulated bag: the world, the true motion, the mount, and
 /// how the scans' timing was faulted.
 struct Truth {
@@ -61,6 +69,8 @@ struct Truth {
   core::TimeNs epoch = 0;    ///< [ns] bag time of t = 0
   double range_sigma = 0.0;  ///< [m] range noise used (0 = off)
   Pose2 mount;
+  /// The mount from a time on (none in files written before it existed).
+  std::optional<MountChange> mount_change;
   Pose2 start;
   std::vector<MotionPiece> pieces;
   World world;
@@ -76,7 +86,10 @@ struct Truth {
   unsigned odom_noise_seed = 0;
 
   PiecewiseTrajectory trajectory() const { return PiecewiseTrajectory(start, pieces); }
-  /// True laser pose in the world at bag time `time` [ns].
+  /// The mount in force at bag time `time` [ns] (mount_change's from its time on).
+  Pose2 mountAt(core::TimeNs time) const;
+  /// True laser pose in the world at bag time `time` [ns], with mountAt(time) (the sweep's own mount
+  /// unless a sweep spans the change, which the simulator's bags avoid: see SimBagOptions).
   Pose2 laserPose(core::TimeNs time) const;
   /// [s] the parameter that corrects the stamps: true earliest-beam time = stamp + timeOffset().
   double timeOffset() const { return 0.0 - timing_fault.stamp_error; }
@@ -88,6 +101,7 @@ struct Truth {
 /// The timing lines: "time_offset S" (= -stamp_error), "reversed 0|1", "time_increment_factor F",
 /// "zero_scan_time 0|1", "beam_period S", "sweep_period S"; absent in older files, which read as no
 /// fault and periods 0. The odometry lines "odom_noise R", "odom_noise_seed N"; absent: 0 (perfect).
+/// "mount_change T X Y YAW" only when the mount changed.
 /// read throws std::runtime_error naming the file and line on malformed input.
 void writeTruth(const Truth& truth, const std::string& path);
 Truth readTruth(const std::string& path);

@@ -4,6 +4,7 @@
 #include <rosbag/bag.h>
 #include <tf2_msgs/TFMessage.h>
 
+#include <optional>
 #include <string>
 
 #include "lidar_deskew/sim/scenario.h"
@@ -29,6 +30,11 @@ struct SimBagOptions {
   /// from their own generator).
   double odom_noise = 0.0;
   unsigned odom_noise_seed = 1;  ///< of the odometry's generator
+  /// A recalibrated mount: /tf_static base -> laser written again, stamped and recorded at its time, and
+  /// the scans whose last beam is at or after that time cast with it (recorded in the truth). Put the
+  /// time between two sweeps (a sensor's blind sector, or between two beams) for a truth that holds
+  /// for every beam of every scan.
+  std::optional<MountChange> mount_change;
 };
 
 /// Simulates `scenario` in its world and writes `bag_path` with
@@ -37,7 +43,8 @@ struct SimBagOptions {
 /// - /tf (tf2_msgs/TFMessage): fixed -> base at tf_rate, the odometry's pose (the true pose unless
 ///   options.odom_noise > 0), from tf_margin before the first scan to tf_margin after the last, both as
 ///   the scans truly are and as their (faulted) messages claim;
-/// - /tf_static: base -> laser (the mount), once, latched (writeTfStatic);
+/// - /tf_static: base -> laser (the mount), once, latched (writeTfStatic); again at
+///   options.mount_change's time with its mount;
 /// - /odom (nav_msgs/Odometry): the same poses with the commanded twist (its speed and yaw rate times
 ///   the step's odometry factors);
 /// and the matching truth file at `truth_path` (the true motion, the fault, the true beam and sweep
