@@ -43,6 +43,12 @@ constexpr double kMaxStepSlant = 3.0;
 /// the continuation's length in segment lengths) stays below this; otherwise the step is joined as before (a
 /// chord, or two contour ends).
 constexpr double kStepErrorBudget = 0.005;
+/// [m] Where the scan's noise is within kStepErrorBudget, what the returns cannot tell is left empty
+/// rather than guessed beyond this error: a contour's end (or a lone return's facet) is followed at most
+/// this far past its last return (the surface may end right there), and a chord (two returns on no
+/// surface, corner or step the rules know) fills its bins only when it is at most twice this long (the
+/// true surface between may be a corner as deep as half the chord).
+constexpr double kGuessBudget = 0.01;
 /// Neighbours farther apart than the gap (one of them flat) are one surface up to this many gaps apart.
 constexpr double kFlatJoinGaps = 3.0;
 /// A step, or a surface whose points are farther apart than the gap, bridges at most this many bins
@@ -322,13 +328,21 @@ void ScanRebinner::traceContours(const Points& points, const BinSweep& sweep) {
   const std::size_t point_count = points.size();
   const double abs_increment = sweep.absIncrement();
   const auto intensity = [&](std::size_t j) { return points[j].intensity; };
+  // Precise enough that a guess, not the noise, would be the error: guesses are left out (kGuessBudget).
+  const bool precise = flat_tolerance_ <= kStepErrorBudget;
+  const auto endReach = [&](std::size_t a, std::size_t b) {
+    return precise ? std::min(kGuessBudget, joinGap(a, b, abs_increment)) : joinGap(a, b, abs_increment);
+  };
   for (std::size_t j = 0; j < point_count; ++j) {
     const std::size_t q = next_[j];
     switch (link_[j]) {
       case Link::kNone:
         break;
-      case Link::kSurface:
       case Link::kChord:
+        if (precise && std::hypot(x_[q] - x_[j], y_[q] - y_[j]) > 2.0 * kGuessBudget)
+          break;  // its surface cannot be told: left empty
+        [[fallthrough]];
+      case Link::kSurface:
         crossSegment(x_[j], y_[j], bearing_[j], intensity(j), x_[q], y_[q], bearing_[q], intensity(q), sweep);
         break;
       case Link::kCorner: {
@@ -361,8 +375,7 @@ void ScanRebinner::traceContours(const Points& points, const BinSweep& sweep) {
       continue;
     if (!continues(left) && !continues(right)) {
       // Lone return: a facet facing the sensor.
-      extendLine(points, j, -y_[j], x_[j], joinGap(j, j, abs_increment), 0.0, bearing_[j] - half_bin,
-                 abs_increment, sweep);
+      extendLine(points, j, -y_[j], x_[j], endReach(j, j), 0.0, bearing_[j] - half_bin, abs_increment, sweep);
       continue;
     }
     const bool from_left = continues(left);
@@ -375,7 +388,7 @@ void ScanRebinner::traceContours(const Points& points, const BinSweep& sweep) {
     const std::size_t corner_of = from_left ? p : j;
     const double nx = link == Link::kCorner ? corner_x_[corner_of] : x_[neighbour];
     const double ny = link == Link::kCorner ? corner_y_[corner_of] : y_[neighbour];
-    extendLine(points, j, x_[j] - nx, y_[j] - ny, joinGap(j, neighbour, abs_increment), 0.0,
+    extendLine(points, j, x_[j] - nx, y_[j] - ny, endReach(j, neighbour), 0.0,
                bearing_[j] - half_bin - kBearingError, abs_increment + 2.0 * kBearingError, sweep, 0.0,
                near_end_of_step);
   }

@@ -140,9 +140,13 @@ int main(int argc, char** argv) {
       std::printf("distance to the true walls [mm]  RMS / p95 / max\n");
       std::printf("  raw            %s  (%zu points)\n", triple(result.raw).c_str(), result.raw.count);
       std::printf("  corrected      %s  (%zu points)\n", triple(result.cloud).c_str(), result.cloud.count);
-      std::printf("  corrected scan %s  (%zu filled bins, %zu = %.2f %% farther than 10 mm)\n",
-                  triple(result.scan).c_str(), result.scan.count, result.scan_over_1cm,
-                  result.scan.count ? 100.0 * result.scan_over_1cm / result.scan.count : 0.0);
+      std::printf(
+          "  corrected scan %s  (%zu filled bins, %zu = %.2f %% farther than 10 mm; of the %zu the "
+          "truth-corrected scan fills, %zu = %.2f %% empty)\n",
+          triple(result.scan).c_str(), result.scan.count, result.scan_over_1cm,
+          result.scan.count ? 100.0 * result.scan_over_1cm / result.scan.count : 0.0,
+          result.truth_scan_filled, result.scan_emptied,
+          result.truth_scan_filled ? 100.0 * result.scan_emptied / result.truth_scan_filled : 0.0);
       std::printf("  laser_geometry %s  (%zu points)\n", triple(result.laser_geometry).c_str(),
                   result.laser_geometry.count);
       std::printf(

@@ -93,7 +93,9 @@ Evaluation evaluateBag(const std::string& bag_path, const std::string& truth_pat
   evaluation.scans = scans.size();
   evaluation.range_sigma_mm = 1e3 * truth.range_sigma;
   core::ScanDeskewer deskewer(options.deskew);
-  core::ScanRebinner rebinner(options.rebin);
+  core::ScanRebinner rebinner(options.rebin), truth_rebinner(options.rebin);
+  core::DeskewedScan truth_corrected;
+  core::RebinnedScan truth_rebinned;
   laser_geometry::LaserProjection projector;
   std::vector<double> raw, cloud, rebinned_scan, laser_geometry_errors, to_hit;
   double noise_sum_squares = 0.0;
@@ -127,6 +129,9 @@ Evaluation evaluateBag(const std::string& bag_path, const std::string& truth_pat
     const sim::Pose2 laser_at_stamp = truth.laserPose(scan.stamp);
     const sim::Pose2 laser_at_reference = truth.laserPose(corrected.reference_time);
     const core::ReturnTest is_return(scan);
+    truth_corrected.reference_time = corrected.reference_time;
+    truth_corrected.has_intensities = corrected.has_intensities;
+    truth_corrected.points.clear();
     for (std::size_t i = 0; i < scan.ranges.size(); ++i) {
       if (!is_return(scan.ranges[i]))
         continue;
@@ -142,14 +147,26 @@ Evaluation evaluateBag(const std::string& bag_path, const std::string& truth_pat
           laser.yaw + scan.angle_min + point.beam_index * static_cast<double>(scan.angle_increment);
       const Eigen::Vector2d direction(std::cos(angle), std::sin(angle));
       if (const auto hit = truth.world.castRayHit({laser.x, laser.y}, direction)) {
-        to_hit.push_back((world_point - (Eigen::Vector2d(laser.x, laser.y) + hit->range * direction)).norm());
+        const Eigen::Vector2d true_hit = Eigen::Vector2d(laser.x, laser.y) + hit->range * direction;
+        to_hit.push_back((world_point - true_hit).norm());
+        core::DeskewedPoint truth_point = point;
+        truth_point.position.head<2>() = laser_at_reference.applyInverse(true_hit);
+        truth_point.position.z() = 0.0;
+        truth_corrected.points.push_back(truth_point);
         const double cosine = direction.dot(hit->normal);
         noise_sum_squares += truth.range_sigma * truth.range_sigma * cosine * cosine;
         ++noise_count;
       }
     }
+    truth_rebinner.rebin(truth_corrected, {scan.angle_min, scan.angle_increment, scan.ranges.size()},
+                         core::noReturnValue(scan), truth_rebinned);
     for (std::size_t b = 0; b < rebinned.ranges.size(); ++b) {
-      if (!std::isfinite(rebinned.ranges[b]) || !is_return(rebinned.ranges[b]))
+      const bool ours = std::isfinite(rebinned.ranges[b]) && is_return(rebinned.ranges[b]);
+      if (std::isfinite(truth_rebinned.ranges[b]) && is_return(truth_rebinned.ranges[b])) {
+        ++evaluation.truth_scan_filled;
+        evaluation.scan_emptied += !ours;
+      }
+      if (!ours)
         continue;
       const double angle = scan.angle_min + b * static_cast<double>(scan.angle_increment);
       rebinned_scan.push_back(

@@ -253,8 +253,9 @@ TEST(Rebin, CornerOfAFarGrazingWall) {
 
 // A far wall at a grazing angle whose first return has no return before it: that return is not flat (one
 // neighbour), the next one is (the three on one line), so the two are one surface although farther apart
-// than the gap, and the ray before the first return meets the wall's line, not a facet facing the sensor
-// (0.5 m off).
+// than the gap. The ray before the first return (6 deg; the wall begins at 5.8) would meet the wall's line
+// 0.9 m before that return, but the returns cannot tell where the wall begins (anywhere from 5.5 to 6.5
+// deg): the bin is left empty, neither guessed on the line nor a facet facing the sensor (0.5 m off).
 TEST(Rebin, FarGrazingWallFromItsFirstReturn) {
   const Eigen::Vector2d start(20.0, 20.0 * std::tan(5.8 * M_PI / 180.0));  // bearing 5.8 deg
   const double wall_deg = 15.8;                                            // 10 deg off that ray
@@ -265,7 +266,8 @@ TEST(Rebin, FarGrazingWallFromItsFirstReturn) {
   ScanRebinner rebinner;
   RebinnedScan out;
   rebinner.rebin(scan, kDegreeGrid, kInf, out);
-  EXPECT_EQ(expectTrueRanges(world, out, 6, 12, false), 7);
+  EXPECT_EQ(expectTrueRanges(world, out, 7, 12, false), 6);
+  EXPECT_TRUE(std::isinf(out.ranges[6 + 180]));  // where the wall begins cannot be told: empty
   EXPECT_TRUE(std::isinf(out.ranges[5 + 180]));  // before the wall: nothing
 }
 
@@ -405,24 +407,58 @@ TEST(Rebin, FoldOverTakesTheNearestCrossingAndEmptyBinsStayInfinite) {
 
 TEST(Rebin, InterpolatesBetweenPointsOffTheGrid) {
   // Ten points at bearings 0.4, 1.4, ..., 9.4 deg on the line x = 4: bins 1..9 lie between points and
-  // are interpolated on the line; bin 0 lies 0.4 deg (< half a bin) before the first point and is
-  // reached along the contour's line; bin 10 lies 0.6 deg past the last point and is not.
-  SyntheticScan synthetic;
-  for (int k = 0; k < 10; ++k) {
-    const double bearing = (k + 0.4) * M_PI / 180.0;
-    synthetic.scan.points.push_back(
-        {Eigen::Vector3d(4.0, 4.0 * std::tan(bearing), 0.0), 0.0, 0.0f, static_cast<std::uint32_t>(k)});
+  // are interpolated on the line; bin 10 lies 0.6 deg past the last point and is not reached. Bin 0 lies
+  // 0.4 deg before the first point: its ray meets the line 28 mm before it, and where the wall ends the
+  // returns cannot tell, so that bin is left empty (a contour's end is followed at most 10 mm). With the
+  // points at 0.1, 1.1, ... deg, bin 0's ray meets the line 7 mm before the first point: reached.
+  for (const double offset_deg : {0.4, 0.1}) {
+    SyntheticScan synthetic;
+    for (int k = 0; k < 10; ++k) {
+      const double bearing = (k + offset_deg) * M_PI / 180.0;
+      synthetic.scan.points.push_back(
+          {Eigen::Vector3d(4.0, 4.0 * std::tan(bearing), 0.0), 0.0, 0.0f, static_cast<std::uint32_t>(k)});
+    }
+    ScanRebinner rebinner;
+    RebinnedScan out;
+    rebinner.rebin(synthetic.scan, synthetic.grid, 0.0f, out);
+    EXPECT_TRUE(out.intensities.empty());
+    for (int degrees = 1; degrees <= 9; ++degrees) {
+      EXPECT_NEAR(out.ranges[SyntheticScan::binOf(degrees)], 4.0 / std::cos(degrees * M_PI / 180.0), 1e-5)
+          << degrees;
+    }
+    if (offset_deg == 0.1)
+      EXPECT_NEAR(out.ranges[SyntheticScan::binOf(0)], 4.0, 1e-5);
+    else
+      EXPECT_EQ(out.ranges[SyntheticScan::binOf(0)], 0.0f);  // the input's own "no return"
+    EXPECT_EQ(out.ranges[SyntheticScan::binOf(-1)], 0.0f);
+    EXPECT_EQ(out.ranges[SyntheticScan::binOf(10)], 0.0f);
   }
-  ScanRebinner rebinner;
-  RebinnedScan out;
-  rebinner.rebin(synthetic.scan, synthetic.grid, 0.0f, out);
-  EXPECT_TRUE(out.intensities.empty());
-  for (int degrees = 0; degrees <= 9; ++degrees) {
-    EXPECT_NEAR(out.ranges[SyntheticScan::binOf(degrees)], 4.0 / std::cos(degrees * M_PI / 180.0), 1e-5)
-        << degrees;
+}
+
+// Two returns 0.35 m apart on the two faces of a square pillar's corner (nearer than the gap at 20 m,
+// neither on a line with a third): the chord between cuts the corner, up to 0.17 m off. Where the scan's
+// noise is small, the surface between cannot be told from the returns: the bin between is left empty.
+// A chord no longer than 20 mm (the surface between can then lie at most 10 mm off it) still fills.
+TEST(Rebin, AChordWhoseSurfaceCannotBeToldIsLeftEmpty) {
+  const double near_deg = 0.5, far_deg = 1.5;
+  for (const double range : {20.0, 0.5}) {
+    SyntheticScan synthetic;
+    synthetic.addLine(2.0 * range, -10, -1, 0, 0.0f);  // a wall behind, up to the pillar
+    const auto at = [&](double degrees, double r) {
+      return Eigen::Vector3d(r * std::cos(degrees * M_PI / 180.0), r * std::sin(degrees * M_PI / 180.0), 0.0);
+    };
+    synthetic.scan.points.push_back({at(near_deg, range), 0.0, 0.0f, 10});
+    synthetic.scan.points.push_back({at(far_deg, range * 1.002), 0.0, 0.0f, 11});
+    ScanRebinner rebinner;
+    RebinnedScan out;
+    rebinner.rebin(synthetic.scan, synthetic.grid, 0.0f, out);
+    const float between = out.ranges[SyntheticScan::binOf(1)];
+    const double chord = (at(far_deg, range * 1.002) - at(near_deg, range)).norm();
+    if (chord > 0.02)
+      EXPECT_EQ(between, 0.0f) << range;
+    else
+      EXPECT_NEAR(between, range, 0.01) << range;
   }
-  EXPECT_EQ(out.ranges[SyntheticScan::binOf(-1)], 0.0f);  // the input's own "no return"
-  EXPECT_EQ(out.ranges[SyntheticScan::binOf(10)], 0.0f);
 }
 
 TEST(Rebin, DepthJumpsAreNotBridged) {

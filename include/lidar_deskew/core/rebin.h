@@ -64,6 +64,11 @@ class ScanRebinner {
   ///   the scan's noise keeps that continuation within kStepErrorBudget (rebin.cpp); else as below;
   /// - other contour ends (next to a beam without a return, or the scan's end) follow the end segment's
   ///   line for up to half a bin; a lone point is a facet facing the sensor, half a bin to each side;
+  /// - where the scan's noise is within kStepErrorBudget (rebin.cpp), what the returns cannot tell is left
+  ///   empty rather than guessed beyond 10 mm (kGuessBudget): an end or a facet reaches at most 10 mm
+  ///   past its return (the surface may end there), and a chord longer than 20 mm (two returns on no
+  ///   surface, corner or step the rules know: the surface between may be a corner half as deep) fills
+  ///   no bin;
   /// - where several contours cross a ray (a fast spin folds the scan over itself), the nearest wins;
   /// - a bin no contour crosses gets `no_return`.
   /// Writes `grid.count` ranges (and intensities when corrected.has_intensities, else none).

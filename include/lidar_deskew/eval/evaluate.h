@@ -39,6 +39,10 @@ struct Evaluation {
   /// Of the re-binned LaserScan's bins with a return (scan.count), those whose endpoint lies farther than
   /// 10 mm from the true walls.
   std::size_t scan_over_1cm = 0;
+  /// The truth-corrected scan: every beam's true hit, in the true laser frame at the reference time,
+  /// re-binned alike. Its bins with a return, and how many of those our scan leaves empty.
+  std::size_t truth_scan_filled = 0;
+  std::size_t scan_emptied = 0;
   ErrorStats laser_geometry;  ///< laser_geometry, target = laser frame at the stamp, fixed = odom
   /// Distance of our corrected points to their own beam's true hit point [mm] (noise shows in full).
   ErrorStats cloud_to_hit;
