@@ -3,7 +3,8 @@
 // with the driver's timing faults), or a multi-line LIDAR sweep by sweep (PointCloud2 in a driver's
 // layout).
 //
-//   deskew_simulate --list | --list-paper | --list-calibration | --list-clouds | --list-conventions
+//   deskew_simulate --list | --list-paper | --list-calibration | --list-smooth | --list-clouds |
+//                   --list-conventions
 //   deskew_simulate --scenario UTM-30LX/high/arc --bag out.bag --truth out.truth [--noise] [--seed N]
 //                   [--tf-rate HZ] [--tf-margin S] [--clockwise] [--duration S] [--stamp-error S |
 //                   --stamp-at-end] [--reversed] [--time-increment-factor F] [--zero-scan-time]
@@ -26,16 +27,18 @@ namespace {
 int usage(const char* program) {
   std::fprintf(
       stderr,
-      "usage: %s --list | --list-paper | --list-calibration | --list-clouds | --list-conventions\n"
+      "usage: %s --list | --list-paper | --list-calibration | --list-smooth | --list-clouds |\n"
+      "          --list-conventions\n"
       "       %s --scenario NAME --bag OUT.bag --truth OUT.truth [--noise] [--seed N] [--tf-rate HZ]\n"
       "          [--tf-margin S] [--clockwise] [--duration S] [--stamp-error S | --stamp-at-end]\n"
       "          [--reversed] [--time-increment-factor F] [--zero-scan-time]\n"
       "          [--odom-noise R [--odom-seed N]]\n"
       "       %s --cloud-scenario NAME --convention NAME --bag OUT.bag --truth OUT.truth [--noise]\n"
       "          [--seed N] [--tf-rate HZ] [--duration S] [--latency S]\n"
-      "  --list              the planar scenarios (LaserScan on /scan): the paper's, then calibration's\n"
+      "  --list              the planar scenarios (LaserScan on /scan): the paper's, calibration's, smooth\n"
       "  --list-paper        the paper's 19, then 5 LDS-01 ones in a small room (docs/RESULTS.md)\n"
       "  --list-calibration  the drives for timing calibration (SENSOR/normal|high/turns, SENSOR/normal/spin|circle)\n"
+      "  --list-smooth       speed and turn rate changing between samples too (SENSOR/normal|high/smooth)\n"
       "  --list-clouds       the multi-line scenarios (PointCloud2 on /points, frame lidar)\n"
       "  --list-conventions  the drivers' cloud layouts for --convention\n"
       "  --tf-margin S       odometry from S before the first scan to S after the last (default 0.1)\n"
@@ -66,10 +69,11 @@ int main(int argc, char** argv) {
   for (int a = 1; a < argc; ++a) {
     const std::string arg = argv[a];
     const bool has_value = a + 1 < argc;
-    if (arg == "--list" || arg == "--list-paper" || arg == "--list-calibration") {
-      const std::vector<sim::Scenario> scenarios = arg == "--list"         ? sim::planarScenarios()
-                                                   : arg == "--list-paper" ? sim::paperScenarios()
-                                                                           : sim::calibrationScenarios();
+    if (arg == "--list" || arg == "--list-paper" || arg == "--list-calibration" || arg == "--list-smooth") {
+      const std::vector<sim::Scenario> scenarios = arg == "--list"               ? sim::planarScenarios()
+                                                   : arg == "--list-paper"       ? sim::paperScenarios()
+                                                   : arg == "--list-calibration" ? sim::calibrationScenarios()
+                                                                                 : sim::smoothScenarios();
       for (const sim::Scenario& scenario : scenarios)
         std::printf("%s\n", scenario.name.c_str());
       return 0;

@@ -8,6 +8,9 @@
 namespace lidar_deskew::sim {
 namespace {
 
+/// [s] The smooth drives: one period of the turn rate.
+constexpr double kSmoothDuration = 1.3;
+
 /// A "0" or "1" field into `flag`: whether it was one of them.
 bool readFlag(std::istream& fields, bool* flag) {
   int value = -1;
@@ -110,7 +113,40 @@ Scenario makeSteadyScenario(const LidarModel& lidar, const std::string& motion) 
   return scenario;
 }
 
+/// Motion whose twist changes between samples (smoothUnicyclePieces): "normal" 1.5 m/s and 2 rad/s,
+/// "high" 6 m/s and 5 rad/s at their peaks, the laser 0.25 m ahead, 0.05 m left and turned 0.1 rad.
+Scenario makeSmoothScenario(const LidarModel& lidar, const std::string& speed) {
+  Scenario scenario;
+  scenario.lidar = lidar;
+  scenario.speed = speed;
+  scenario.motion = "smooth";
+  scenario.name = lidar.name + "/" + speed + "/smooth";
+  const bool high = speed == "high";
+  scenario.mount = {0.25, 0.05, 0.1};
+  scenario.duration = kSmoothDuration;
+  if (lidar.range_max < 10.0f) {
+    // In the small room the laser stays 0.3 m inside the walls (1.5 m/s: within 0.7 m of the start).
+    scenario.world = World::smallRoom();
+    scenario.start = high ? Pose2{-0.2, -1.6, 0.0} : Pose2{0.0, -0.2, 0.0};
+  } else {
+    scenario.start = {-10.0, -1.5, 0.0};
+  }
+  // Pieces to well past the last scan and the odometry's margin; the last one goes on after that.
+  scenario.pieces = smoothUnicyclePieces(high ? 6.0 : 1.5, high ? 5.0 : 2.0, kSmoothDuration + 1.0);
+  return scenario;
+}
+
 }  // namespace
+
+std::vector<Scenario> smoothScenarios() {
+  std::vector<Scenario> scenarios;
+  for (const std::string speed : {"normal", "high"}) {
+    for (const LidarModel& lidar :
+         {LidarModel::utm30lx360(), LidarModel::ild26tri(), LidarModel::utm30lx270(), LidarModel::lds01()})
+      scenarios.push_back(makeSmoothScenario(lidar, speed));
+  }
+  return scenarios;
+}
 
 std::vector<Scenario> paperScenarios() {
   std::vector<Scenario> scenarios;
@@ -163,6 +199,8 @@ std::vector<Scenario> calibrationScenarios() {
 std::vector<Scenario> planarScenarios() {
   std::vector<Scenario> scenarios = paperScenarios();
   for (Scenario& scenario : calibrationScenarios())
+    scenarios.push_back(std::move(scenario));
+  for (Scenario& scenario : smoothScenarios())
     scenarios.push_back(std::move(scenario));
   return scenarios;
 }

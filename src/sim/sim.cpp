@@ -198,10 +198,29 @@ PiecewiseTrajectory::PiecewiseTrajectory(const Pose2& start, std::vector<MotionP
 }
 
 std::size_t PiecewiseTrajectory::pieceAt(double t) const {
-  std::size_t k = 0;
-  while (k + 1 < pieces_.size() && t >= begin_times_[k + 1])
-    ++k;
-  return k;
+  // The last piece that begins at or before t (the first before them all); begin_times_[0] is 0.
+  const auto after = std::upper_bound(begin_times_.begin() + 1, begin_times_.end(), t);
+  return static_cast<std::size_t>(after - begin_times_.begin()) - 1;
+}
+
+std::vector<MotionPiece> smoothUnicyclePieces(double speed, double yaw_rate, double duration,
+                                              double speed_period, double turn_period, double piece) {
+  if (!(piece > 0.0) || !(duration >= 0.0) || !(speed_period > 0.0) || !(turn_period > 0.0))
+    throw std::invalid_argument("smoothUnicyclePieces: periods and piece must be > 0, duration >= 0");
+  const double speed_frequency = 2.0 * M_PI / speed_period, turn_frequency = 2.0 * M_PI / turn_period;
+  const auto speedAt = [&](double t) { return speed * std::cos(speed_frequency * t); };
+  // The heading: the yaw rate's integral from 0.
+  const auto headingAt = [&](double t) { return yaw_rate / turn_frequency * std::sin(turn_frequency * t); };
+  const auto count = static_cast<std::size_t>(std::ceil(duration / piece - 1e-9));
+  std::vector<MotionPiece> pieces;
+  pieces.reserve(count);
+  for (std::size_t k = 0; k < count; ++k) {
+    // Each piece's times from its index, so that rounding does not accumulate.
+    const double begin = static_cast<double>(k) * piece, end = static_cast<double>(k + 1) * piece;
+    pieces.push_back({end - begin, speedAt(begin), (speedAt(end) - speedAt(begin)) / (end - begin),
+                      (headingAt(end) - headingAt(begin)) / (end - begin)});
+  }
+  return pieces;
 }
 
 Pose2 PiecewiseTrajectory::pose(double t) const {

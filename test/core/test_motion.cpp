@@ -248,6 +248,80 @@ TEST(TwistMotion, FollowsAStepOfTurnRateAtASample) {
   EXPECT_LT(worst, 1e-6);
 }
 
+/// A unicycle whose speed and turn rate follow cosines (the smooth drives of sim::smoothScenarios):
+/// speed v cos(2 pi t / 2 s), turn rate w cos(2 pi t / 1.3 s), from the origin at t = 0, integrated by
+/// the classical Runge-Kutta method in 10 us steps (error ~1e-13 m).
+struct SmoothUnicycle {
+  double v, w;
+  std::vector<CPose2D> integrate(double duration, double dt) const {
+    const auto derivative = [&](double t, const Eigen::Vector3d& state) {
+      const double speed = v * std::cos(M_PI * t);
+      return Eigen::Vector3d(speed * std::cos(state.z()), speed * std::sin(state.z()),
+                             w * std::cos(2.0 * M_PI * t / 1.3));
+    };
+    std::vector<CPose2D> poses;
+    Eigen::Vector3d state = Eigen::Vector3d::Zero();
+    const long steps = std::lround(duration / dt);
+    for (long i = 0; i <= steps; ++i) {
+      poses.emplace_back(state.x(), state.y(), state.z());
+      const double t = static_cast<double>(i) * dt;
+      const Eigen::Vector3d k1 = derivative(t, state), k2 = derivative(t + dt / 2, state + dt / 2 * k1);
+      const Eigen::Vector3d k3 = derivative(t + dt / 2, state + dt / 2 * k2);
+      const Eigen::Vector3d k4 = derivative(t + dt, state + dt * k3);
+      state += dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4);
+    }
+    return poses;
+  }
+};
+
+/// RMS error [m] over [begin, end] of a point 5 m ahead of and 0.25 m beside the base (a laser's return)
+/// with the motion fitted from exact samples every `sample_period` [s], and tf's line (`linear`).
+double smoothError(const std::vector<CPose2D>& truth, double dt, double sample_period, double begin,
+                   double end, double* linear) {
+  const auto at = [&](double t) { return CPose3D(truth[static_cast<std::size_t>(std::lround(t / dt))]); };
+  PoseSamples samples;
+  const long count = std::lround(std::floor(2.0 / sample_period));
+  for (long k = 0; k <= count; ++k)
+    samples.add(kT0 + secondsToNs(k * sample_period), at(k * sample_period));
+  TwistMotion fitted;
+  fitted.prepare(samples, kT0 + secondsToNs(begin), kT0 + secondsToNs(end));
+  EXPECT_EQ(fitted.smoothedIntervals(), 0u) << sample_period;  // exact samples: followed
+  double sum = 0.0, sum_linear = 0.0;
+  int n = 0;
+  const mrpt::math::TPoint3D point(5.0, 0.25, 0.0);
+  for (double t = begin; t <= end + 1e-9; t += 0.001) {
+    const TimeNs time = kT0 + secondsToNs(t);
+    const mrpt::math::TPoint3D truth_point = at(t).composePoint(point);
+    sum += (fitted.basePose(time).composePoint(point) - truth_point).sqrNorm();
+    sum_linear += (samples.basePose(time).composePoint(point) - truth_point).sqrNorm();
+    ++n;
+  }
+  *linear = std::sqrt(sum_linear / n);
+  return std::sqrt(sum / n);
+}
+
+TEST(TwistMotion, ThirdOrderOnATwistChangingBetweenSamples) {
+  // 6 m/s and 5 rad/s peaks; a 0.2 s sweep across the speed's zero (at 0.5 s) and the turn rate's
+  // steepest change (0.325 s). Samples at 10, 20, 40, 80 Hz: tf's line is second order (error / 4 per
+  // halving), the fit third order (/ 8).
+  const double dt = 1e-5;
+  const std::vector<CPose2D> truth = SmoothUnicycle{6.0, 5.0}.integrate(2.0, dt);
+  double previous = 0.0, previous_linear = 0.0;
+  for (const double period : {0.1, 0.05, 0.025, 0.0125}) {
+    double linear;
+    const double error = smoothError(truth, dt, period, 0.3, 0.5, &linear);
+    std::printf("smooth unicycle, samples every %.4f s: twist %.4f mm, linear %.4f mm RMS 5 m ahead\n",
+                period, 1e3 * error, 1e3 * linear);
+    EXPECT_LT(error, 0.2 * linear) << period;
+    if (previous > 0.0) {
+      EXPECT_NEAR(previous_linear / linear, 4.0, 1.0) << period;
+      EXPECT_GT(previous / error, 6.0) << period;
+    }
+    previous = error;
+    previous_linear = linear;
+  }
+}
+
 TEST(TwistMotion, SmoothsNoisyOdometryOverTheWindow) {
   // An arc at 1.5 m/s and 2 rad/s whose odometry has 10 % noise on each 20 ms increment (a random walk).
   // The relative motion over 200 ms sweeps is compared with the true arc's.

@@ -55,21 +55,9 @@ TEST(Sim, PiecewiseMotionIsContinuousAndFollowsItsPieces) {
   EXPECT_NEAR(end.y, expected.y, 1e-12);
 }
 
-TEST(Sim, PaperScenariosAreAllThere) {
-  const auto scenarios = paperScenarios();
-  // 3 sensors x 3 motions x 2 speeds + varying, then the LDS-01's five
-  ASSERT_EQ(scenarios.size(), 24u);
-  EXPECT_EQ(findScenario("ILD26TRI/high/arc").lidar.beams, 360);
-  EXPECT_THROW(findScenario("nope"), std::invalid_argument);
-  EXPECT_EQ(scenarios[18].name, "ILD26TRI/varying/varying");
-  std::vector<std::string> lds01;
-  for (std::size_t k = 19; k < scenarios.size(); ++k)
-    lds01.push_back(scenarios[k].name);
-  EXPECT_EQ(lds01,
-            (std::vector<std::string>{"LDS-01/normal/translation", "LDS-01/normal/rotation",
-                                      "LDS-01/normal/arc", "LDS-01/high/rotation", "LDS-01/high/arc"}));
-  // Every scenario's laser stays inside its world, at least 0.5 m from any wall of the hall or 0.3 m from
-  // any wall of the small room, over the bag's odometry (0.1 s margins) and beyond.
+/// Every scenario's laser stays inside its world, at least 0.5 m from any wall of the hall or 0.3 m from
+/// any wall of the small room, over the bag's odometry (0.1 s margins) and beyond.
+void expectInsideTheirWorlds(const std::vector<Scenario>& scenarios) {
   for (const Scenario& scenario : scenarios) {
     const bool small_room = scenario.lidar.name == "LDS-01";
     EXPECT_EQ(scenario.world.outline(), small_room ? World::smallRoomOutline() : World::hallOutline())
@@ -84,6 +72,65 @@ TEST(Sim, PaperScenariosAreAllThere) {
           << scenario.name << " at " << t;
     }
   }
+}
+
+TEST(Sim, PaperScenariosAreAllThere) {
+  const auto scenarios = paperScenarios();
+  // 3 sensors x 3 motions x 2 speeds + varying, then the LDS-01's five
+  ASSERT_EQ(scenarios.size(), 24u);
+  EXPECT_EQ(findScenario("ILD26TRI/high/arc").lidar.beams, 360);
+  EXPECT_THROW(findScenario("nope"), std::invalid_argument);
+  EXPECT_EQ(scenarios[18].name, "ILD26TRI/varying/varying");
+  std::vector<std::string> lds01;
+  for (std::size_t k = 19; k < scenarios.size(); ++k)
+    lds01.push_back(scenarios[k].name);
+  EXPECT_EQ(lds01,
+            (std::vector<std::string>{"LDS-01/normal/translation", "LDS-01/normal/rotation",
+                                      "LDS-01/normal/arc", "LDS-01/high/rotation", "LDS-01/high/arc"}));
+  expectInsideTheirWorlds(scenarios);
+}
+
+/// Speed 6 cos(2 pi t / 2) m/s, turn rate 5 cos(2 pi t / 1.3) rad/s, from (1, -2, 0.3): the pieces follow
+/// the smooth unicycle, integrated here independently by the classical Runge-Kutta method in 10 us steps
+/// (error ~1e-13 m), to 2 um over 2 s; the speed and turn rate at a piece's start are the cosines'.
+TEST(Sim, SmoothUnicyclePiecesFollowTheCosines) {
+  const double speed = 6.0, yaw_rate = 5.0, duration = 2.0;
+  const PiecewiseTrajectory trajectory({1.0, -2.0, 0.3}, smoothUnicyclePieces(speed, yaw_rate, duration));
+  EXPECT_EQ(trajectory.pieces().size(), 8000u);
+  const auto derivative = [&](double t, const Eigen::Vector3d& state) {
+    const double v = speed * std::cos(M_PI * t);
+    return Eigen::Vector3d(v * std::cos(state.z()), v * std::sin(state.z()),
+                           yaw_rate * std::cos(2.0 * M_PI * t / 1.3));
+  };
+  Eigen::Vector3d state(1.0, -2.0, 0.3);
+  const double h = 1e-5;
+  double worst_position = 0.0, worst_heading = 0.0;
+  for (int i = 0; i < 200000; ++i) {
+    const double t = i * h;
+    if (i % 1000 == 0) {
+      const Pose2 pose = trajectory.pose(t);
+      worst_position = std::max(worst_position, std::hypot(pose.x - state.x(), pose.y - state.y()));
+      worst_heading = std::max(worst_heading, std::abs(pose.yaw - state.z()));
+      EXPECT_NEAR(trajectory.speed(t), speed * std::cos(M_PI * t), 1e-6 * speed) << t;
+    }
+    const Eigen::Vector3d k1 = derivative(t, state), k2 = derivative(t + h / 2, state + h / 2 * k1);
+    const Eigen::Vector3d k3 = derivative(t + h / 2, state + h / 2 * k2),
+                          k4 = derivative(t + h, state + h * k3);
+    state += h / 6 * (k1 + 2 * k2 + 2 * k3 + k4);
+  }
+  std::printf("smooth unicycle pieces vs Runge-Kutta: %.2e m, %.2e rad\n", worst_position, worst_heading);
+  EXPECT_LT(worst_position, 2e-6);
+  EXPECT_LT(worst_heading, 1e-9);
+}
+
+TEST(Sim, SmoothScenariosAreAllThere) {
+  const auto scenarios = smoothScenarios();
+  ASSERT_EQ(scenarios.size(), 8u);
+  EXPECT_EQ(scenarios.front().name, "UTM-30LX/normal/smooth");
+  EXPECT_EQ(scenarios.back().name, "LDS-01/high/smooth");
+  EXPECT_EQ(findScenario("ILD26TRI/high/smooth").pieces.front().speed, 6.0);
+  EXPECT_EQ(findScenario("LDS-01/normal/smooth").pieces.front().speed, 1.5);
+  expectInsideTheirWorlds(scenarios);
 }
 
 /// The LDS-01 paper scenarios: 8 scans at the paper's speeds (normal 1.5 m/s, 2 rad/s; high 6 m/s,

@@ -18,7 +18,7 @@ struct Scenario {
   /// "normal" (1.5 m/s, 2 rad/s; turns: 1 m/s, 2 rad/s), "high" (6 m/s, 5 rad/s; turns: 2 m/s,
   /// 5 rad/s) or "varying"
   std::string speed;
-  std::string motion;  ///< "translation", "rotation", "arc", "varying" or "turns"
+  std::string motion;  ///< "translation", "rotation", "arc", "varying", "turns", "spin", "circle", "smooth"
   Pose2 mount;         ///< laser on the base
   Pose2 start;         ///< base pose in the world at t = 0
   std::vector<MotionPiece> pieces;
@@ -48,7 +48,14 @@ std::vector<Scenario> paperScenarios();
 /// twist for 12 s, in which an offset cannot show: "<sensor>/normal/spin" (1.5 rad/s in place) and
 /// "<sensor>/normal/circle" (0.5 m/s, 1 rad/s) for ILD26TRI, UTM-30LX and LDS-01.
 std::vector<Scenario> calibrationScenarios();
-/// Every planar scenario: paperScenarios() then calibrationScenarios().
+/// Motion whose twist changes all the time, between odometry samples too (sim::smoothUnicyclePieces):
+/// the speed follows a cosine of period 2 s from its peak through zero into reverse, the turn rate one
+/// of period 1.3 s; "normal" peaks at 1.5 m/s and 2 rad/s, "high" at 6 m/s and 5 rad/s. Laser 0.25 m
+/// ahead, 0.05 m left, turned 0.1 rad; 1.3 s of scans. UTM-30LX, ILD26TRI and UTM-30LX-270 in the hall
+/// (start (-10, -1.5)), LDS-01 in World::smallRoom(). "<sensor>/normal/smooth", "<sensor>/high/smooth":
+/// 8 scenarios (docs/RESULTS.md).
+std::vector<Scenario> smoothScenarios();
+/// Every planar scenario: paperScenarios(), calibrationScenarios(), then smoothScenarios().
 std::vector<Scenario> planarScenarios();
 /// The planar scenario of that name; throws std::invalid_argument listing the names otherwise.
 Scenario findScenario(const std::string& name);
