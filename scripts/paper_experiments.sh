@@ -128,15 +128,17 @@ How to read them: with noise off, what is left is each method's own error. tf in
 between its ${tf_rate} Hz samples; on the 6 m/s, 5 rad/s arc that polyline is off the true arc by up to
 v·w·h²/8 = 1.5 mm at 50 Hz. Our correction follows the twist between tf's samples instead, which is the
 arc itself, with knots at the samples joined by screws: its arc rows are exact. The varying rows show
-the chords between 5 ms knots where the twist changes within an interval (0.16 mm at most; the changes
-fall on samples; tables at 10, 20 and 50 Hz below). laser_geometry is exact
+the chords between knots where the twist changes within an interval (knots down to 0.5 ms apart where it
+changes fast: 0.02 mm at most; the changes fall on samples; tables at 10, 20 and 50 Hz below). laser_geometry is exact
 for a pure translation and for a spin about the laser (the chord is the path), and off on arcs and
 varying motion. The re-binned scan is exact where a ray falls between two returns on one wall; at a
 corner it follows both walls' lines to where they meet, along a wall at a grazing angle (returns
 farther apart than the gap) where a third return confirms its line, and behind a depth step the far
-wall's line (each only where the scan's noise keeps it within 5 mm). What is left (its max; 0.35-0.93 %
-of bins > 1 cm on the 1° ILD26TRI, ≤ 0.17 % on the others) is mostly depth steps to a single return and
-near contours' ends, where no line is known. With noise on,
+wall's line (each only where the scan's noise keeps it within 5 mm). Where the returns cannot tell the
+surface (a near contour's end, a lone return, a chord between returns on no known surface) and the noise
+is that small, the bin is left empty rather than guessed beyond 10 mm: no bin lies more than 10 mm off
+(its max), at 2-3 % fewer filled bins on the 1° ILD26TRI and 0.3-0.5 % on the others (\`deskew_metrics\`
+prints the counts). With noise on,
 range noise σ moves points along their beams, which is σ·rms(cos incidence) from the walls: about
 0.8 σ here.
 
