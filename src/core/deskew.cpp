@@ -424,8 +424,8 @@ void ScanDeskewer::correctScan(const PlanarScan& scan, const BeamTiming& timing,
     return;
   }
 
-  trajectory_.build(timing.first_beam_time, span_begin, span_end, out.reference_time,
-                    source.knotInterval(config_.knot_interval), mount, source);
+  trajectory_.build(timing.first_beam_time, span_begin, span_end, out.reference_time, config_.knot_interval,
+                    mount, source);
   if (trajectory_.planar()) {
     trajectory_.correctPlanarScan(scan, timing.beam_period, beam_directions_, reference_offset, out);
     return;
@@ -525,8 +525,7 @@ TimeNs ScanDeskewer::correctFirings(const std::vector<Eigen::Vector3d>& points, 
     }
     return reference_time;
   }
-  trajectory_.build(origin, earliest, latest, reference_time, source.knotInterval(config_.knot_interval),
-                    mount, source);
+  trajectory_.build(origin, earliest, latest, reference_time, config_.knot_interval, mount, source);
   // The points of one firing share one affine map, built once.
   firing_maps_.resize(count);
   for (std::size_t f = 0; f < count; ++f)

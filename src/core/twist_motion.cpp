@@ -22,11 +22,6 @@ constexpr double kResidualMedian = 0.0857;
 /// 10 m): counted as exact.
 constexpr double kFloorDisplacement = 1e-5;  // [m]
 constexpr double kFloorAngle = 1e-6;         // [rad]
-/// knotInterval(): screws between knots may stray this far [m] from the fitted motion at this distance
-/// [m] from the base, with knots at least kMinKnotSpacing [s] apart.
-constexpr double kKnotTolerance = 2e-5;
-constexpr double kKnotReach = 10.0;
-constexpr double kMinKnotSpacing = 5e-4;
 /// Standard normal quantile of the line test (one-sided 99.9 %).
 constexpr double kTestQuantile = 3.09;
 
@@ -353,13 +348,9 @@ void TwistMotion::fitInterval(std::size_t j, int c, double& mean, double& slope)
     mean = alpha;
     slope = beta;
     any_line = true;
-    // Exact samples (no noise above the floor): a wider line is the same line; nothing to smooth. The
-    // interval keeps its own mean, so that the fitted motion passes through every sample: means off by
-    // up to the floor would add up along the sweep's pieces.
-    if (noise_[c] <= floor_[c]) {
-      mean = y(j);
+    // Exact samples (no noise above the floor): a wider line is the same line; nothing to smooth.
+    if (noise_[c] <= floor_[c])
       break;
-    }
   }
   if (any_line)
     return;
@@ -376,35 +367,8 @@ void TwistMotion::fitInterval(std::size_t j, int c, double& mean, double& slope)
     double alpha, beta, rss;
     if (one_side.fit(alpha, beta, rss) && rss <= variance * lineTestLimit(1.0) && rss < best_rss) {
       best_rss = rss;
-      mean = noise_[c] <= floor_[c] ? y(j) : alpha;  // exact samples: followed (above)
+      mean = alpha;
       slope = beta;
-    }
-  }
-  if (best_rss < INFINITY)
-    return;
-  // The twist the same as one neighbour's and different from the other's (the step test of
-  // estimateNoise): a step at a sample beside a constant twist (a turn rate flipping every other
-  // sample): the interval's own twist. Both the same: a flat stretch, which the parabola finds too.
-  if (j > 0 && j + 1 < count) {
-    const double step_limit = 2.0 * variance * lineTestLimit(1.0);
-    const bool same_before = (y(j - 1) - y(j)) * (y(j - 1) - y(j)) <= step_limit;
-    const bool same_after = (y(j + 1) - y(j)) * (y(j + 1) - y(j)) <= step_limit;
-    if (same_before != same_after)
-      return;
-  }
-  // The twist curves here beyond the noise: the interval's own mean, changing at the slope of the
-  // parabola through it and two neighbours (the three intervals that curve least: a step or kink at a
-  // sample beside the interval leaves the parabola on its other side smooth). A smooth twist is then
-  // followed to O(h^2) and the pose to O(h^3) between the samples, which stay exact.
-  double least_curvature = INFINITY;
-  for (std::size_t lo_k = j >= 2 ? j - 2 : 0; lo_k <= j && lo_k + 2 < count; ++lo_k) {
-    const double x0 = x(lo_k), x1 = x(lo_k + 1), x2 = x(lo_k + 2);
-    const double d01 = (y(lo_k + 1) - y(lo_k)) / (x1 - x0), d12 = (y(lo_k + 2) - y(lo_k + 1)) / (x2 - x1);
-    const double curvature = (d12 - d01) / (x2 - x0);
-    // Ties (a parabola: equal curvatures) go to the centred stencil, which comes second.
-    if (std::abs(curvature) < least_curvature * (lo_k + 1 == j ? 1.0 + 1e-9 : 1.0)) {
-      least_curvature = std::abs(curvature);
-      slope = d01 - curvature * (x0 + x1);  // the parabola's derivative at the interval's centre
     }
   }
 }
@@ -413,7 +377,6 @@ const MotionSource& TwistMotion::prepare(const MotionSource& raw, TimeNs begin, 
   raw_ = &raw;
   pieces_.clear();
   smoothed_intervals_ = 0;
-  fastest_change_ = 0.0;
   screws_ = false;
   if (!gatherSamples(raw, begin, end))
     return raw;
@@ -485,7 +448,6 @@ const MotionSource& TwistMotion::prepare(const MotionSource& raw, TimeNs begin, 
     piece.start_twist = centre - 0.5 * h * slope;
     piece.slope = slope;
     screws_ = screws_ && slope.isZero();
-    fastest_change_ = std::max(fastest_change_, slope.head<3>().norm() + kKnotReach * slope.tail<3>().norm());
     piece.rotation = rotation;
     piece.translation = translation;
     pieces_.push_back(piece);
@@ -517,12 +479,6 @@ mrpt::poses::CPose3D TwistMotion::basePose(TimeNs time) const {
   se3Exp(piece.omega(tau), step_rotation, step_translation);
   return detail::poseOf(piece.rotation * step_rotation,
                         piece.translation + piece.rotation * step_translation);
-}
-
-double TwistMotion::knotInterval(double requested) const {
-  if (!(fastest_change_ > 0.0))
-    return requested;
-  return std::min(requested, std::max(kMinKnotSpacing, std::sqrt(8.0 * kKnotTolerance / fastest_change_)));
 }
 
 void TwistMotion::appendSampleTimes(TimeNs begin, TimeNs end, std::vector<TimeNs>& times) const {

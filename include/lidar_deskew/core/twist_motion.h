@@ -29,22 +29,19 @@ Twist se3Bracket(const Twist& a, const Twist& b);
 /// - Each twist component of each interval the sweep touches is fit by a straight line in time over
 ///   the intervals around it: the widest window (up to smoothing_window, centred) in which a line
 ///   explains the means within the odometry's noise; if none does, a line through the interval and two
-///   neighbours on one side that does (a change of slope beside it); else the interval's own mean,
-///   changing at the slope of the parabola through it and two neighbours that curves least (a smooth
-///   twist changing between samples: followed to O(h^2), the pose to O(h^3); or a change of twist at
-///   a sample beside it: the parabola on the other side).
+///   neighbours on one side that does (a change of slope beside it); else the interval's own mean
+///   (a change of twist at its sample: an arc through both samples).
 /// - The noise is estimated from the samples themselves: how far each interval's mean lies from the best of
 ///   the simplest local models (constant over two intervals, straight over three, a quartic over six),
 ///   a median over the intervals of about a second before the sweep to the window after it. Exact samples
 ///   give a noise of 0 (to a floor of 1e-5 m or 1e-6 rad per interval), so every sample is then followed
-///   exactly: each interval keeps its own mean, whatever slope its line or parabola gives it.
+///   exactly.
 /// - Over an interval the fitted twist is integrated to second order (two Magnus terms) such that its
 ///   end lies where the fitted mean twist takes it.
 ///
 /// Exact for constant linear and angular velocity (an arc; its twist is the same on every interval) and,
-/// with exact samples, for a twist that changes linearly or steps at a sample, and third-order accurate
-/// between samples for a twist that changes smoothly; with noisy samples the motion over the sweep is a
-/// least-squares fit, not a curve through each sample.
+/// with exact samples, for a twist that changes linearly or steps at a sample; with noisy samples the
+/// motion over the sweep is a least-squares fit, not a curve through each sample.
 class TwistMotion final : public MotionSource {
  public:
   /// `smoothing_window` [s]: the longest time over which interval twists are fit together (0: only
@@ -71,10 +68,6 @@ class TwistMotion final : public MotionSource {
   /// no smoothing): its pieces are screws.
   bool screwsBetweenSamples() const override { return screws_; }
   bool screwsBetweenKnots() const override { return true; }
-  /// A screw between knots d apart strays from a twist changing at rate a by about |a| d^2 / 8: the
-  /// spacing at which that stays below 0.02 mm for a point 10 m away on the fastest-changing piece
-  /// (0.8 ms at 5 rad/s turning at 1.3 s periods), at least 0.5 ms and at most `requested`.
-  double knotInterval(double requested) const override;
 
   /// The noise [m/s, rad/s] per twist component estimated for the last prepare() (0 when exact or
   /// too few samples), and how many of its intervals were smoothed (fitted twist off their own mean
@@ -127,7 +120,6 @@ class TwistMotion final : public MotionSource {
   Eigen::Vector3d end_translation_;
   TimeNs end_time_ = 0;
   std::size_t smoothed_intervals_ = 0;
-  double fastest_change_ = 0.0;  // [m/s^2] largest |slope| of a piece, its angular part times 10 m
   bool screws_ = false;
   std::vector<double> scratch_;  // estimateNoise()'s buffer for medians
   std::vector<double> minima_;   // estimateNoise()'s smallest residual per interval, a column per component
