@@ -128,8 +128,8 @@ How to read them: with noise off, what is left is each method's own error. tf in
 between its ${tf_rate} Hz samples; on the 6 m/s, 5 rad/s arc that polyline is off the true arc by up to
 v·w·h²/8 = 1.5 mm at 50 Hz. Our correction follows the twist between tf's samples instead, which is the
 arc itself, with knots at the samples joined by screws: its arc rows are exact. The varying rows show
-the chords between knots where the twist changes within an interval (knots down to 0.5 ms apart where it
-changes fast: 0.02 mm at most; the changes fall on samples; tables at 10, 20 and 50 Hz below). laser_geometry is exact
+the chords between 5 ms knots where the twist changes within an interval (0.16 mm at most; the changes
+fall on samples; tables at 10, 20 and 50 Hz below). laser_geometry is exact
 for a pure translation and for a spin about the laser (the chord is the path), and off on arcs and
 varying motion. The re-binned scan is exact where a ray falls between two returns on one wall; at a
 corner it follows both walls' lines to where they meet, along a wall at a grazing angle (returns
@@ -162,11 +162,10 @@ $rate_tables
 The smooth drives (\`deskew_simulate --list-smooth\`): speed following a cosine of period 2 s from its
 peak through zero into reverse, turn rate one of period 1.3 s (normal: 1.5 m/s, 2 rad/s; high: 6 m/s,
 5 rad/s), laser 0.25 m off-centre, noise off: the twist changes at every instant, between tf's samples
-too. tf's line and a constant twist per interval are both second order there; the fit is third order
-between samples (a parabola's slope for each interval's twist, knots closer where it changes fast).
-Where two intervals around a turn rate's peak have the same twist, the step rule keeps them constant
-(needed for ILD26TRI/varying, whose turn rate flips every other sample at 50 Hz), which costs part of
-the 10 Hz gain. RMS / max in mm; the last column the re-binned scan (twist).
+too. tf's line and today's fit, a constant twist per interval where no line explains it, are both
+second order there, and the table shows it: twist is about linear, and on the ILD26TRI at 10 and 20 Hz
+worse (issue 24 asks for third order; a fit that reached it was not merged: its result depended on
+how much tf after the sweep had arrived). RMS / max in mm; the last column the re-binned scan (twist).
 
 | scenario | tf Hz | cloud, linear | cloud, twist | scan, twist |
 | --- | ---: | --- | --- | --- |
