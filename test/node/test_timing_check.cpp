@@ -79,7 +79,7 @@ TEST(TimingCheck, ReportsWhetherTheTimingFits) {
   }
   EXPECT_GE(rig.diagnosticNumber("pairs while turning"), 20.0);
   // Within its budget: 5 % of the CPU time of the node's callbacks (a part of the node's CPU), a check
-  // taken only when one costing what the last did still fits (checks vary: a tenth of a point of slack).
+  // taken only when one costing as much as the costliest of late still fits (a tenth of a point of slack).
   const double share = rig.diagnosticNumber("check CPU share [%]");
   std::printf("check CPU share %.2f %% of the node's callbacks\n", share);
   EXPECT_GT(share, 0.0);

@@ -117,10 +117,10 @@ class DeskewNode {
   std::unique_ptr<diagnostic_updater::Updater> diagnostics_;
   // The live timing check (scans only; guarded by mutex_).
   std::unique_ptr<core::TimingCheck> timing_check_;
-  double callbacks_cpu_ = 0.0;    // [s] thread CPU time in the node's callbacks, the check's included
-  double check_cpu_ = 0.0;        // [s] of it in the timing check
-  double last_check_cpu_ = 0.0;   // [s] the last check's
-  bool timing_reported_ = false;  // the timing status is on /diagnostics (the timer's alone)
+  double callbacks_cpu_ = 0.0;      // [s] thread CPU time in the node's callbacks, the check's included
+  double check_cpu_ = 0.0;          // [s] of it in the timing check
+  double largest_check_cpu_ = 0.0;  // [s] the costliest check of late (decays by a tenth a check)
+  bool timing_reported_ = false;    // the timing status is on /diagnostics (the timer's alone)
   std::unique_ptr<Reconfigure> reconfigure_;
 };
 
