@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The Debian package works from its own files. Builds it with scripts/build_deb.sh (or takes DEB),
 # checks its control data and that apt resolves its Depends, that lintian finds no error (it prints the
-# warnings; each warning's tag must be justified in README.md's "Install as a Debian package"), that
+# warnings; each warning's tag must be justified in docs/PACKAGING.md), that
 # it holds what a downstream package needs and not the simulators' and scoring's headers, unpacks it
 # into a scratch root and then,
 # in a private mount namespace where that root is laid over /usr (where dpkg -i would put the files;
@@ -134,7 +134,7 @@ apt-get install -s "$deb" >"$scratch/apt.log" 2>&1 || { cat "$scratch/apt.log"; 
 grep -E "^Inst ros-lidar-deskew|ros-lidar-deskew is already the newest" "$scratch/apt.log" ||
   { cat "$scratch/apt.log"; echo "FAIL: apt would not install it"; exit 1; }
 
-# lintian: no error; every warning justified in the README (its tag named in the Debian section).
+# lintian: no error; every warning justified in docs/PACKAGING.md (its tag named there).
 command -v lintian >/dev/null || { echo "FAIL: lintian is not installed (scripts/install_deps.sh)"; exit 1; }
 lintian_options=()
 [ "$(id -u)" -ne 0 ] || lintian_options=(--allow-root)
@@ -147,9 +147,9 @@ if grep -qv -e '^[EWIPNXO]: ' "$scratch/lintian.txt"; then
   echo "FAIL: lintian did not run"
   exit 1
 fi
-justified=$(sed -n '/^### Install as a Debian package/,/^## /p' "$repo/README.md")
+justified=$(cat "$repo/docs/PACKAGING.md")
 for tag in $(sed -n 's/^W: [^ ]* \([^ ]*\).*/\1/p' "$scratch/lintian.txt" | sort -u); do
-  grep -q "\b$tag\b" <<<"$justified" || { echo "FAIL: lintian warning $tag is not justified in README.md"; exit 1; }
+  grep -q "\b$tag\b" <<<"$justified" || { echo "FAIL: lintian warning $tag is not justified in docs/PACKAGING.md"; exit 1; }
 done
 
 # Debian's layout, and no catkin workspace files in /usr.

@@ -371,14 +371,6 @@ std::vector<double> TimingFit::pairDistances(const TimingConfig& timing, std::ve
   return distances;
 }
 
-double TimingFit::score(const TimingConfig& timing) const {
-  double sum = 0.0;
-  const std::vector<double> distances = pairDistances(timing);
-  for (double distance : distances)
-    sum += std::isfinite(distance) ? distance : config_.consistency.cap;
-  return distances.empty() ? config_.consistency.cap : sum / distances.size();
-}
-
 std::string toString(TimingCause cause) {
   switch (cause) {
     case TimingCause::kNone:

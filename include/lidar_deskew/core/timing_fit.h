@@ -119,8 +119,6 @@ class TimingFit {
   /// measure (TimingFitConfig::coarse_consistency, tf's straight line between samples) on its pairs
   /// only (TimingFitConfig::coarse_pairs; the others unscored).
   std::vector<double> pairDistances(const TimingConfig& timing, std::vector<char>& scored, bool coarse) const;
-  /// Mean of pairDistances (NaN pairs count as the cap).
-  double score(const TimingConfig& timing) const;
 
  private:
   PlacedScan placeOne(std::size_t i, const TimingConfig& timing, ScanDeskewer& deskewer,
