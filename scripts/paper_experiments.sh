@@ -70,7 +70,8 @@ while read -r scenario; do
     "$bin/deskew_simulate" --scenario "$scenario" --bag "$bag" --truth "$truth" --tf-rate "$rate"
     linear=$("$bin/deskew_metrics" "$bag" "$truth" --markdown --params "$work/linear.yaml")
     twist=$("$bin/deskew_metrics" "$bag" "$truth" --markdown --params "$work/twist.yaml")
-    smooth_rows+="| $scenario | $rate | $(cell "$linear" 6) | **$(cell "$twist" 6)** | $(cell "$twist" 8) |"$'\n'
+    ratio=$(awk -v a="$(cell "$twist" 6)" -v b="$(cell "$linear" 6)" 'BEGIN { split(a, x, " "); split(b, y, " "); printf "%.3f", x[1] / y[1] }')
+    smooth_rows+="| $scenario | $rate | $(cell "$linear" 6) | **$(cell "$twist" 6)** | $ratio | $(cell "$linear" 7) | **$(cell "$twist" 7)** | $(cell "$twist" 8) |"$'\n'
     rm -f "$bag" "$truth"
   done
 done < <("$bin/deskew_simulate" --list-smooth)
@@ -162,21 +163,23 @@ $rate_tables
 The smooth drives (\`deskew_simulate --list-smooth\`): speed following a cosine of period 2 s from its
 peak through zero into reverse, turn rate one of period 1.3 s (normal: 1.5 m/s, 2 rad/s; high: 6 m/s,
 5 rad/s), laser 0.25 m off-centre, noise off: the twist changes at every instant, between tf's samples
-too. tf's line and today's fit, a constant twist per interval where no line explains it, are both
-second order there, and the table shows it: twist is about linear, and on the ILD26TRI at 10 and 20 Hz
-worse (issue 24 asks for third order; a fit that reached it was not merged: its result depended on
-how much tf after the sweep had arrived). RMS / max in mm; the last column the re-binned scan (twist).
+too. tf's line is second order there; twist keeps each interval's own mean and lets it change at the
+slope its neighbours show (a line or parabola through three intervals), third order between the
+samples, reading tf only up to the sample that closes the sweep. "twist / linear" is the clouds' RMS
+ratio. RMS / max in mm.
 
-| scenario | tf Hz | cloud, linear | cloud, twist | scan, twist |
-| --- | ---: | --- | --- | --- |
+| scenario | tf Hz | cloud, linear | cloud, twist | twist / linear | scan, linear | scan, twist | laser_geometry |
+| --- | ---: | --- | --- | ---: | --- | --- | --- |
 $smooth_rows
 ### Noisy odometry
 
 Odometry integrated in 20 ms steps, each step's increment (x, y, yaw) multiplied by 1 + R·n, n ~ N(0, 1)
 per step and component (\`deskew_simulate --odom-noise R\`: a random walk, as encoder quantisation and
 slip give), tf and /odom at 50 Hz, range noise on. "floor" is the same scans with perfect odometry
-(twist), what range noise alone leaves. The twist fit smooths the noisy samples over up to
-\`smoothing_window\` (0.6 s) instead of following each one.
+(twist), what range noise alone leaves. Twist follows noisy samples (each interval an arc through
+its two samples), so it is about linear here: smoothing them needs the samples after the sweep, which
+a scan corrected as soon as tf covers it does not have, and with those before it alone a line through
+a curving twist did worse than following (DESIGN.md §5).
 
 | scenario | odometry noise R | seed | floor | cloud, linear | cloud, twist | laser_geometry | scan, linear | scan, twist |
 | --- | ---: | ---: | --- | --- | --- | --- | --- | --- |

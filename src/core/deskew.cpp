@@ -319,7 +319,6 @@ Interpolation parseInterpolation(const std::string& text) {
 }
 
 void DeskewConfig::validate() const {
-  TwistMotion::checkWindow(smoothing_window);
   if (!std::isfinite(knot_interval) || knot_interval < 0.0 ||
       (knot_interval > 0.0 && (knot_interval < kMinKnotInterval || knot_interval > kMaxKnotInterval))) {
     throw InvalidInput("knot_interval", "must be 0 (exact) or in [" + std::to_string(kMinKnotInterval) +
@@ -346,7 +345,7 @@ Eigen::Vector3d deskewPointExact(const Eigen::Vector3d& raw, TimeNs point_time, 
 }
 
 ScanDeskewer::ScanDeskewer(const DeskewConfig& config)
-    : config_((config.validate(), config)), twist_(config.smoothing_window) {}
+    : config_((config.validate(), config)) {}
 
 const MotionSource& ScanDeskewer::motionFor(const MotionSource& motion, TimeNs begin, TimeNs end) {
   if (config_.interpolation == Interpolation::kLinear)
@@ -424,8 +423,8 @@ void ScanDeskewer::correctScan(const PlanarScan& scan, const BeamTiming& timing,
     return;
   }
 
-  trajectory_.build(timing.first_beam_time, span_begin, span_end, out.reference_time, config_.knot_interval,
-                    mount, source);
+  trajectory_.build(timing.first_beam_time, span_begin, span_end, out.reference_time,
+                    source.knotInterval(config_.knot_interval), mount, source);
   if (trajectory_.planar()) {
     trajectory_.correctPlanarScan(scan, timing.beam_period, beam_directions_, reference_offset, out);
     return;
@@ -525,7 +524,8 @@ TimeNs ScanDeskewer::correctFirings(const std::vector<Eigen::Vector3d>& points, 
     }
     return reference_time;
   }
-  trajectory_.build(origin, earliest, latest, reference_time, config_.knot_interval, mount, source);
+  trajectory_.build(origin, earliest, latest, reference_time, source.knotInterval(config_.knot_interval),
+                    mount, source);
   // The points of one firing share one affine map, built once.
   firing_maps_.resize(count);
   for (std::size_t f = 0; f < count; ++f)

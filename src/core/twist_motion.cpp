@@ -1,6 +1,7 @@
 #include "lidar_deskew/core/twist_motion.h"
 
 #include <Eigen/Geometry>
+#include <Eigen/LU>
 
 #include <algorithm>
 #include <cmath>
@@ -22,6 +23,16 @@ constexpr double kResidualMedian = 0.0857;
 /// 10 m): counted as exact.
 constexpr double kFloorDisplacement = 1e-5;  // [m]
 constexpr double kFloorAngle = 1e-6;         // [rad]
+/// knotInterval(): screws between knots may stray this far [m] from the fitted motion at this distance
+/// [m] from the base, with knots at least kMinKnotSpacing [s] apart.
+constexpr double kKnotTolerance = 2e-5;
+constexpr double kKnotReach = 10.0;
+constexpr double kMinKnotSpacing = 5e-4;
+/// Samples whose estimated noise is below this share of a component's typical size are fitted as exact:
+/// what the simple models of estimateNoise leave there is the motion's own curvature (1e-4 rad/s on
+/// the 5 rad/s smooth drive at 40 Hz), and a parabola's slope through noise that small costs far less
+/// than it gains. Odometry with 10 % noise per step is followed.
+constexpr double kNoiseShare = 0.01;
 /// Standard normal quantile of the line test (one-sided 99.9 %).
 constexpr double kTestQuantile = 3.09;
 
@@ -141,16 +152,6 @@ Twist se3Bracket(const Twist& a, const Twist& b) {
   return out;
 }
 
-void TwistMotion::checkWindow(double smoothing_window) {
-  if (!std::isfinite(smoothing_window) || smoothing_window < 0.0 || smoothing_window > 10.0) {
-    throw InvalidInput("smoothing_window", "must be in [0, 10] s, got " + std::to_string(smoothing_window));
-  }
-}
-
-TwistMotion::TwistMotion(double smoothing_window) : smoothing_window_(smoothing_window) {
-  checkWindow(smoothing_window);
-}
-
 Twist TwistMotion::Piece::omega(double tau) const {
   return start_twist * tau + slope * (0.5 * tau * tau) +
          (tau * tau * tau / 12.0) * se3Bracket(start_twist, slope);
@@ -162,10 +163,9 @@ std::deque<TwistMotion::Sample>::iterator TwistMotion::cachedAt(TimeNs time) {
 }
 
 bool TwistMotion::gatherSamples(const MotionSource& raw, TimeNs begin, TimeNs end) {
-  const double half = 0.5 * smoothing_window_;
   times_.clear();
   // appendSampleTimes gives times strictly inside; the margins include the samples bracketing the sweep.
-  const TimeNs horizon = secondsToNs(std::max(kNoiseHorizon, half));
+  const TimeNs horizon = secondsToNs(kNoiseHorizon);
   raw.appendSampleTimes(begin - horizon - 1, end + horizon + 1, times_);
   // Sources report their times in order (tf, PoseSamples): sorting is then a check.
   if (!std::is_sorted(times_.begin(), times_.end()))
@@ -175,9 +175,10 @@ bool TwistMotion::gatherSamples(const MotionSource& raw, TimeNs begin, TimeNs en
   const auto at_end = std::lower_bound(times_.begin(), times_.end(), end);
   if (after_begin == times_.begin() || at_end == times_.end())
     return false;
-  // After the sweep: the sample that closes it, and those within half the window.
-  times_.erase(std::upper_bound(at_end, times_.end(), std::max(*at_end, end + secondsToNs(half))),
-               times_.end());
+  // After the sweep only the sample that closes it: the fit then depends on nothing that arrives after
+  // the sweep is covered (a scan is corrected as soon as it is, live and offline), so how much tf had
+  // arrived by then cannot change a scan's correction.
+  times_.erase(at_end + 1, times_.end());
   const std::size_t first = static_cast<std::size_t>(after_begin - times_.begin()) - 1;
   const std::size_t last = static_cast<std::size_t>(at_end - times_.begin());
 
@@ -251,6 +252,7 @@ void TwistMotion::estimateNoise() {
   const double typical = kthSmallest(durations_.data(), count, count / 2, scratch_);
   floor_.head<3>().setConstant(kFloorDisplacement / typical);
   floor_.tail<3>().setConstant(kFloorAngle / typical);
+  noisy_.fill(false);
   if (count < kMinNoiseIntervals + 10)
     return;
   // Each interval's mean against the best of the simplest local models that can hold it: constant over
@@ -310,65 +312,87 @@ void TwistMotion::estimateNoise() {
   for (std::size_t c = 0; c < 6; ++c)
     noise_[static_cast<int>(c)] =
         kthSmallest(&minima_[c * scored], scored, middle, scratch_) / kResidualMedian;
+  // Noisy: above the floor and above kNoiseShare of the component's typical size (the median of its
+  // means' magnitudes). Below, what the simple models leave is taken for the motion's own curvature.
+  magnitudes_.resize(count);
+  for (std::size_t c = 0; c < 6; ++c) {
+    for (std::size_t k = 0; k < count; ++k)
+      magnitudes_[k] = std::abs(means_[k][static_cast<int>(c)]);
+    const double typical_size = kthSmallest(magnitudes_.data(), count, count / 2, scratch_);
+    noisy_[c] = noise_[static_cast<int>(c)] > std::max(floor_[static_cast<int>(c)], kNoiseShare * typical_size);
+  }
 }
 
 void TwistMotion::fitInterval(std::size_t j, int c, double& mean, double& slope) const {
   const std::size_t count = means_.size();
-  const double variance = noise_[c] * noise_[c] + floor_[c] * floor_[c];
-  const double half = 0.5 * smoothing_window_;
+  const double variance = floor_[c] * floor_[c];
   const auto x = [&](std::size_t k) { return centres_[k] - centres_[j]; };
   const auto y = [&](std::size_t k) { return means_[k][c]; };
+  // The interval keeps its own mean, so that the fitted motion passes through every sample (means off
+  // by up to the floor would add up along the sweep's pieces); only the slope is fitted.
   mean = y(j);
   slope = 0.0;
-
-  // Centred windows, widened one interval each side while a line still explains them.
-  bool any_line = false;
-  std::size_t lo = j, hi = j;
-  LineSums sums;
-  sums.add(0.0, y(j));
-  for (;;) {
-    bool grew = false;
-    if (lo > 0 && (hi - lo < 2 || -x(lo - 1) <= half)) {
-      --lo;
-      sums.add(x(lo), y(lo));
-      grew = true;
-    }
-    if (hi + 1 < count && (hi - lo < 2 || x(hi + 1) <= half)) {
-      ++hi;
-      sums.add(x(hi), y(hi));
-      grew = true;
-    }
-    if (!grew)
-      break;
-    if (hi - lo < 2)
-      continue;
-    double alpha, beta, rss;
-    if (!sums.fit(alpha, beta, rss) || rss > variance * lineTestLimit(sums.n - 2.0))
-      break;
-    mean = alpha;
-    slope = beta;
-    any_line = true;
-    // Exact samples (no noise above the floor): a wider line is the same line; nothing to smooth.
-    if (noise_[c] <= floor_[c])
-      break;
-  }
-  if (any_line)
+  // Noisy samples are followed: their twist constant over each interval (tf's own accuracy, as an arc).
+  // Fitting them over a window smooths only with samples after the sweep, which a sweep corrected as
+  // soon as tf covers it does not have (SweepsMotionDoesNotDependOnTheTfAfterIt); before it alone, a
+  // line through a curving twist is biased the same way over the whole sweep.
+  if (noisy_[static_cast<std::size_t>(c)])
     return;
-  // A change beside the interval: a line through it and two neighbours on one side.
+  // A line through three intervals around it, centred first, else on one side (a kink at a sample
+  // beside it): the twist changing linearly or constant.
   double best_rss = INFINITY;
-  for (const int side : {-1, 1}) {
-    if ((side < 0 && j < 2) || (side > 0 && j + 2 >= count))
+  for (const long offset : {-1L, -2L, 0L}) {
+    const long start = static_cast<long>(j) + offset;
+    if (start < 0 || start + 2 >= static_cast<long>(count))
       continue;
-    LineSums one_side;
-    for (int step = 0; step <= 2; ++step) {
-      const std::size_t k = static_cast<std::size_t>(static_cast<long>(j) + side * step);
-      one_side.add(x(k), y(k));
-    }
+    LineSums three;
+    for (long k = start; k < start + 3; ++k)
+      three.add(x(static_cast<std::size_t>(k)), y(static_cast<std::size_t>(k)));
     double alpha, beta, rss;
-    if (one_side.fit(alpha, beta, rss) && rss <= variance * lineTestLimit(1.0) && rss < best_rss) {
+    if (three.fit(alpha, beta, rss) && rss <= variance * lineTestLimit(1.0) && rss < best_rss) {
       best_rss = rss;
-      mean = alpha;
       slope = beta;
+      if (offset == -1)
+        break;  // the centred line explains it
+    }
+  }
+  if (best_rss < INFINITY)
+    return;
+  // A step at a sample between two constant stretches (a turn rate flipping every other sample): the
+  // interval's twist equals its neighbour's on one side, and the other side's two neighbours equal each
+  // other but not it. Its own constant twist then. (Equal on one side only is not enough: the two
+  // intervals either side of a smooth twist's extremum have equal means too.)
+  if (j > 0 && j + 1 < count) {
+    const double step_limit = 2.0 * variance * lineTestLimit(1.0);
+    const auto same = [&](std::size_t a, std::size_t b) { return (y(a) - y(b)) * (y(a) - y(b)) <= step_limit; };
+    const bool same_before = same(j - 1, j), same_after = same(j + 1, j);
+    if (same_before != same_after) {
+      const bool flat_beyond = same_before ? j + 2 < count && same(j + 1, j + 2) : j >= 2 && same(j - 1, j - 2);
+      if (flat_beyond)
+        return;
+    }
+  }
+  // The twist curves here beyond the noise: the interval's own mean, changing at the slope of the
+  // parabola whose means over it and two neighbouring intervals are theirs (the three intervals that
+  // curve least: a step or kink at a sample beside the interval leaves the parabola on its other side
+  // smooth). A smooth twist is then followed to O(h^2) and the pose to O(h^3) between the samples,
+  // which stay exact.
+  double least_curvature = INFINITY;
+  for (std::size_t lo_k = j >= 2 ? j - 2 : 0; lo_k <= j && lo_k + 2 < count; ++lo_k) {
+    // q(x) = a + b x + q x^2 about the interval's centre; its mean over interval k (centre x_k, length
+    // h_k) is a + b x_k + q (x_k^2 + h_k^2 / 12).
+    Eigen::Matrix3d averages;
+    Eigen::Vector3d means;
+    for (int r = 0; r < 3; ++r) {
+      const std::size_t k = lo_k + static_cast<std::size_t>(r);
+      averages.row(r) << 1.0, x(k), x(k) * x(k) + durations_[k] * durations_[k] / 12.0;
+      means[r] = y(k);
+    }
+    const Eigen::Vector3d parabola = averages.partialPivLu().solve(means);
+    // Ties (a parabola: equal curvatures) go to the centred stencil, which comes second.
+    if (std::abs(parabola[2]) < least_curvature * (lo_k + 1 == j ? 1.0 + 1e-9 : 1.0)) {
+      least_curvature = std::abs(parabola[2]);
+      slope = parabola[1];
     }
   }
 }
@@ -376,7 +400,7 @@ void TwistMotion::fitInterval(std::size_t j, int c, double& mean, double& slope)
 const MotionSource& TwistMotion::prepare(const MotionSource& raw, TimeNs begin, TimeNs end) {
   raw_ = &raw;
   pieces_.clear();
-  smoothed_intervals_ = 0;
+  fastest_change_ = 0.0;
   screws_ = false;
   if (!gatherSamples(raw, begin, end))
     return raw;
@@ -432,14 +456,11 @@ const MotionSource& TwistMotion::prepare(const MotionSource& raw, TimeNs begin, 
     piece.duration = durations_[j];
     Twist mean, slope;
     const double h = piece.duration;
-    bool smoothed = false;
     for (int c = 0; c < 6; ++c) {
       fitInterval(j, c, mean[c], slope[c]);
       if (std::abs(slope[c]) * h <= floor_[c])
         slope[c] = 0.0;  // a change over the interval below the floor: none
-      smoothed = smoothed || std::abs(mean[c] - means_[j][c]) > floor_[c];
     }
-    smoothed_intervals_ += smoothed ? 1 : 0;
     // Omega(h) = mean h + h^3/12 [start, slope] should be the fitted mean's h: solve for the start
     // twist (two fixed-point steps; the bracket is second order).
     Twist centre = mean;
@@ -448,6 +469,7 @@ const MotionSource& TwistMotion::prepare(const MotionSource& raw, TimeNs begin, 
     piece.start_twist = centre - 0.5 * h * slope;
     piece.slope = slope;
     screws_ = screws_ && slope.isZero();
+    fastest_change_ = std::max(fastest_change_, slope.head<3>().norm() + kKnotReach * slope.tail<3>().norm());
     piece.rotation = rotation;
     piece.translation = translation;
     pieces_.push_back(piece);
@@ -479,6 +501,12 @@ mrpt::poses::CPose3D TwistMotion::basePose(TimeNs time) const {
   se3Exp(piece.omega(tau), step_rotation, step_translation);
   return detail::poseOf(piece.rotation * step_rotation,
                         piece.translation + piece.rotation * step_translation);
+}
+
+double TwistMotion::knotInterval(double requested) const {
+  if (!(fastest_change_ > 0.0))
+    return requested;
+  return std::min(requested, std::max(kMinKnotSpacing, std::sqrt(8.0 * kKnotTolerance / fastest_change_)));
 }
 
 void TwistMotion::appendSampleTimes(TimeNs begin, TimeNs end, std::vector<TimeNs>& times) const {

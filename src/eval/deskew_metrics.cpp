@@ -125,7 +125,6 @@ int main(int argc, char** argv) {
           ros_adapter::DeskewParams::load(ros_adapter::TextParams(values));
       options.timing = params.timing;
       options.deskew.interpolation = params.deskew.interpolation;
-      options.deskew.smoothing_window = params.deskew.smoothing_window;
     }
     if (cloud)
       return cloudMetrics(bag_path, truth_path, markdown);

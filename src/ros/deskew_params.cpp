@@ -75,10 +75,9 @@ const ParamSpec kSpecs[] = {
     {"knot_interval", "double", "0.005", "s", 1e-5, 1.0, false, "", false, false,
      "spacing of tf lookups across the sweep (plus tf's own sample times)"},
     {"interpolation", "string", "twist", "", kNoBound, kNoBound, false, "twist|linear", false, false,
-     "motion between tf samples: twist = the body twist fit over neighbouring samples (exact on arcs, "
-     "smooths noisy odometry); linear = tf2's own straight line"},
-    {"smoothing_window", "double", "0.6", "s", 0.0, 10.0, false, "", false, false,
-     "twist: longest time over which noisy odometry is fit as one smooth motion; 0 = follow every sample"},
+     "motion between tf samples: twist = each interval's body twist, changing as its neighbours' "
+     "show where the samples are exact (exact on arcs, third order between samples); linear = tf2's own "
+     "straight line"},
     {"exact", "bool", "false", "", kNoBound, kNoBound, false, "", false, false,
      "one tf lookup per beam (verification, benchmarks)"},
     {"tf_timeout", "double", "0.2", "s", 0.0, 60.0, false, "", false, true,
@@ -260,7 +259,6 @@ DeskewParams DeskewParams::load(const ParamSource& source, const DeskewParams& b
     checkChoice("interpolation", text);
     params.deskew.interpolation = core::parseInterpolation(text);
   }
-  source.get("smoothing_window", params.deskew.smoothing_window);
   source.get("exact", params.exact);
   if (params.exact)
     params.deskew.knot_interval = 0.0;
@@ -286,6 +284,10 @@ std::vector<std::string> DeskewParams::unknownNames(const std::vector<std::strin
   for (const std::string& name : given) {
     if (std::find(known.begin(), known.end(), name) != known.end())
       continue;
+    if (name == "smoothing_window") {  // removed (CHANGELOG, Forthcoming)
+      unknown.push_back(name + " (no longer used: noisy odometry is followed between its samples)");
+      continue;
+    }
     const std::string closest = closestName(name, known);
     unknown.push_back(closest.empty() ? name : name + " (did you mean " + closest + "?)");
   }
@@ -321,7 +323,6 @@ void DeskewParams::validate() const {
     checkNumber("knot_interval", deskew.knot_interval);
   else if (deskew.knot_interval != 0.0)
     throw core::InvalidInput("knot_interval", "must be 0 with exact: true");
-  checkNumber("smoothing_window", deskew.smoothing_window);
   checkNumber("tf_timeout", tf_timeout);
   checkNumber("max_tf_gap", max_tf_gap);
   checkNumber("max_extrapolation", max_extrapolation);

@@ -114,7 +114,6 @@ void SweepPipeline<Processor>::reconfigure(const DeskewParams& next) {
   fixed(next.exact == params_.exact, "exact");  // before knot_interval, which exact sets to 0
   fixed(next.deskew.knot_interval == params_.deskew.knot_interval, "knot_interval");
   fixed(next.deskew.interpolation == params_.deskew.interpolation, "interpolation");
-  fixed(next.deskew.smoothing_window == params_.deskew.smoothing_window, "smoothing_window");
   fixed(next.input_queue_size == params_.input_queue_size, "input_queue_size");
   fixed(next.cloud_scan.enabled == params_.cloud_scan.enabled, "cloud_scan");  // its publisher
   fixed(next.cloud_time.field == params_.cloud_time.field, "time_field");

@@ -134,9 +134,11 @@ TEST(Params, EveryBoundIsEnforced) {
 
 // A misspelled parameter is named, with the one meant.
 TEST(Params, UnknownNamesAreNamedWithTheClosestParameter) {
-  EXPECT_EQ(DeskewParams::unknownNames({"tf_timout", "tf_timeout", "colour", "stampat"}),
+  EXPECT_EQ(DeskewParams::unknownNames({"tf_timout", "tf_timeout", "colour", "stampat", "smoothing_window"}),
             (std::vector<std::string>{"tf_timout (did you mean tf_timeout?)", "colour",
-                                      "stampat (did you mean stamp_at?)"}));
+                                      "stampat (did you mean stamp_at?)",
+                                      "smoothing_window (no longer used: noisy odometry is followed between "
+                                      "its samples)"}));
 }
 
 // The live-only parameters are the ones deskew_bag refuses.

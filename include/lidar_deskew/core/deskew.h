@@ -33,9 +33,6 @@ struct DeskewConfig {
   Reference reference = Reference::kStart;
   /// Motion between the source's samples (a source without sample times is used as it answers).
   Interpolation interpolation = Interpolation::kTwist;
-  /// [s] kTwist: the longest time over which the twists of sample intervals are fit together when the
-  /// samples are noisy (TwistMotion); 0 follows every sample.
-  double smoothing_window = 0.6;
   /// [s] spacing of the interpolation knots: the motion source is queried at the sweep's first and
   /// last beam, at its own sample times (MotionSource::appendSampleTimes) and, unless those are all
   /// of its motion (MotionSource::sampleTimesComplete), every knot_interval between; beams between
@@ -43,8 +40,7 @@ struct DeskewConfig {
   /// 0 = exact mode: one motion query and one MRPT composition per beam (for verification).
   double knot_interval = 0.005;
 
-  /// Throws InvalidInput("knot_interval") when negative, not finite, or outside [1e-5, 1] s (0 = exact);
-  /// InvalidInput("smoothing_window") outside [0, 10] s.
+  /// Throws InvalidInput("knot_interval") when negative, not finite, or outside [1e-5, 1] s (0 = exact).
   void validate() const;
 };
 

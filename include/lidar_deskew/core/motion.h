@@ -42,6 +42,11 @@ class MotionSource {
   /// (planar motion). Default: false (tf2's own straight lines).
   virtual bool screwsBetweenKnots() const { return false; }
 
+  /// [s] The knot spacing KnotTrajectory uses between the source's samples when its motion there is not
+  /// a screw: `requested` (the knot_interval parameter), or less where the source knows that its twist
+  /// changes so fast that screws between knots that far apart would stray from it. Default: requested.
+  virtual double knotInterval(double requested) const { return requested; }
+
   /// [ns] The longest interval between consecutive samples of the source that overlaps [begin, end]:
   /// the source interpolates across it linearly, whatever the robot did meanwhile. 0 for continuous
   /// sources (the default). Gaps before the first or after the last sample are not counted: there
