@@ -2,9 +2,10 @@
 # Regenerates docs/RESULTS_CLOUDS.md: the multi-line simulator's scenarios (VLP-16 and OS1-64 in the 3D
 # hall, planar motions and rough ground) as bags (noise off and on), each cloud scored against the true
 # surfaces: raw, constant velocity between two poses, ours, one tf lookup per point, and the noise floor
-# (the same clouds corrected with the true trajectory) with ours / floor. Work files go to
-# .build/cloud_experiments/.
-#   bash scripts/cloud_experiments.sh [--tf-rate HZ]
+# (the same clouds corrected with the true trajectory) with ours / floor. Then the smooth drives
+# (deskew_simulate --list-cloud-smooth: the twist changes between tf samples) at tf 10, 20 and 50 Hz,
+# noise off, with interpolation linear and twist. Work files go to .build/cloud_experiments/.
+#   bash scripts/cloud_experiments.sh [--tf-rate HZ]   (the rate of the first tables)
 set -euo pipefail
 export PATH=/usr/bin:/bin:$PATH
 export PYTHONNOUSERSITE=1
@@ -38,6 +39,37 @@ for noise in off on; do
   tables+="### Noise $noise"$'\n\n'"$row_header"$'\n'"$rows"$'\n'
   [ "$noise" = on ] && noisy_rows=$rows
 done
+# Motion that changes between samples: the smooth drives at tf 10, 20 and 50 Hz, noise off, each bag
+# scored with interpolation linear and twist (RMS / max of one run's columns: 7 two poses, 8 ours,
+# 9 exact: true, one query per point).
+printf 'interpolation: linear\n' > "$work/linear.yaml"
+printf 'interpolation: twist\n' > "$work/twist.yaml"
+cell() { echo "$1" | awk -F'|' -v c="$2" '{split($c, v, " / "); gsub(/ /, "", v[1]); gsub(/ /, "", v[3]); print v[1] " / " v[3]}'; }
+smooth_rows=""
+while read -r scenario; do
+  slug=$(echo "$scenario" | tr '/' '_')
+  convention=velodyne_last
+  case "$scenario" in OS1-64/*) convention=ouster ;; esac
+  for rate in 10 20 50; do
+    bag="$work/smooth-$slug-$rate.bag" truth="$work/smooth-$slug-$rate.truth"
+    "$bin/deskew_simulate" --cloud-scenario "$scenario" --convention "$convention" --tf-rate "$rate" \
+      --bag "$bag" --truth "$truth" >/dev/null
+    linear=$("$bin/deskew_metrics" --cloud "$bag" "$truth" --markdown --params "$work/linear.yaml")
+    twist=$("$bin/deskew_metrics" --cloud "$bag" "$truth" --markdown --params "$work/twist.yaml")
+    smooth_rows+="| $scenario | $rate | $(cell "$linear" 7) | $(cell "$linear" 8) | **$(cell "$twist" 8)** | $(cell "$linear" 9) | $(cell "$twist" 9) |"$'\n'
+    rm -f "$bag" "$truth"
+  done
+done < <("$bin/deskew_simulate" --list-cloud-smooth)
+# Twist's RMS over linear's per row: the range, and the rows where twist's RMS is the larger.
+smooth_summary=$(echo "$smooth_rows" | awk -F'|' 'NF > 2 {
+    split($5, l, " / "); split($6, t, " / "); gsub(/[* ]/, "", t[1]); ratio = t[1] / l[1]
+    scenario = $2; rate = $3; gsub(/ /, "", scenario); gsub(/ /, "", rate)
+    if (n++ == 0 || ratio < low) low = ratio; if (ratio > high) high = ratio
+    if (ratio > 1) worse = worse (worse == "" ? "" : ", ") sprintf("%s at %s Hz (%.3f)", scenario, rate, ratio)
+  } END {
+    printf "Ours: twist RMS / linear RMS from %.3f to %.3f; twist the larger in: %s.", low, high, worse == "" ? "none" : worse
+  }')
+
 # Noise on: the worst ours / floor (the last column) and its scenario; the floors' range beside the
 # standing robots' RMS.
 summary=$(echo "$noisy_rows" | awk -F'|' 'NF > 2 {
@@ -89,5 +121,24 @@ each moving scenario is compared with its own floor, not with the standing robot
 adds to the floor is about its own error of the noise-off table, in quadrature.
 
 $tables$summary
+
+### Motion that changes between samples
+
+The smooth drives (\`deskew_simulate --list-cloud-smooth\`), as the planar ones of
+[RESULTS.md](RESULTS.md): the speed follows a cosine of period 2 s from its peak through zero into
+reverse, the turn rate one of period 1.3 s (normal: 1.5 m/s and 2 rad/s; high: 6 m/s and 5 rad/s,
+the sensor off the rotation centre; rough: the normal drive on the rough ground above), so the twist
+changes at every instant, between tf's samples too. From (-10, -1.5), 13 sweeps (1.3 s: one period of
+the turn rate), noise off, tf at 10, 20 and 50 Hz. Each bag scored twice by \`deskew_metrics --cloud
+--params\`, with \`interpolation: linear\` (tf2's line between samples) and \`interpolation: twist\` (the
+default); RMS / max in mm against the true surfaces. **one tf lookup per point** is the linear run with
+\`exact: true\` (a tf2 lookup per point); **twist, one query per point** the twist run with \`exact:
+true\` (the fitted motion asked at every point instead of at knots). At 10 Hz tf's samples fall on the
+sweeps' ends, so linear is the two-pose correction there.
+
+| scenario | tf Hz | two poses, constant velocity | ours, linear | ours, twist | one tf lookup per point | twist, one query per point |
+| --- | ---: | --- | --- | --- | --- | --- |
+$smooth_rows
+$smooth_summary
 MD
 echo "wrote docs/RESULTS_CLOUDS.md"

@@ -3,6 +3,7 @@
 #include <rosbag/bag.h>
 #include <rosbag/view.h>
 
+#include <memory>
 #include <stdexcept>
 
 #include "lidar_deskew/core/motion.h"
@@ -35,6 +36,9 @@ void addDistances(const sim::World3& world, const sim::Pose3& pose,
 std::vector<Eigen::Vector3d> truthCorrected(const ros_adapter::PreparedCloud& prepared,
                                             const sim::CloudTruth& truth, const sim::Pose3& reference) {
   const sim::Pose3 to_reference = reference.inverse();
+  // Built once: a smooth drive has thousands of pieces, and an organized cloud's row-major points
+  // change their time at every point.
+  const std::shared_ptr<const sim::Trajectory3> trajectory = truth.trajectory();
   std::vector<Eigen::Vector3d> points;
   points.reserve(prepared.points.size());
   core::TimeNs pose_time = 0;
@@ -46,7 +50,8 @@ std::vector<Eigen::Vector3d> truthCorrected(const ros_adapter::PreparedCloud& pr
       continue;
     if (!have_pose || prepared.timeOf(i) != pose_time) {
       pose_time = prepared.timeOf(i);
-      relative = to_reference.compose(truth.sensorPose(pose_time));
+      relative = to_reference.compose(
+          trajectory->pose(core::nsToSeconds(pose_time - truth.epoch)).compose(truth.mount));
       have_pose = true;
     }
     points.push_back(relative.apply(p));

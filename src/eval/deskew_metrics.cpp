@@ -4,9 +4,11 @@
 //
 //   deskew_metrics BAG TRUTH [--markdown] [--knot-interval S] [--rebin-gap-factor F] [--rebin-min-gap M]
 //                  [--params FILE.yaml] [--figure-csv FILE] [--figure-scan K]
-//   deskew_metrics --cloud BAG TRUTH [--markdown]   (a multi-line bag of deskew_simulate --cloud-scenario:
-//                  raw, constant velocity between two poses, ours, one tf lookup per point, the noise
-//                  floor (corrected with the true trajectory) and ours / floor as a ratio of RMS)
+//   deskew_metrics --cloud BAG TRUTH [--markdown] [--params FILE.yaml]   (a multi-line bag of
+//                  deskew_simulate --cloud-scenario: raw, constant velocity between two poses, ours, one
+//                  motion query per point (exact: true), the noise floor (corrected with the true
+//                  trajectory) and ours / floor as a ratio of RMS; --params: the node's parameters, e.g.
+//                  interpolation)
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -28,7 +30,7 @@ int usage(const char* program) {
       "usage: %s BAG TRUTH [--markdown] [--knot-interval S] [--rebin-gap-factor F] [--rebin-min-gap M]\n"
       "          [--params FILE.yaml (the timing and interpolation parameters)] [--figure-csv FILE] "
       "[--figure-scan K]\n"
-      "       %s --cloud BAG TRUTH [--markdown]\n",
+      "       %s --cloud BAG TRUTH [--markdown] [--params FILE.yaml]\n",
       program, program);
   return 2;
 }
@@ -50,10 +52,10 @@ std::string oursOverFloor(const lidar_deskew::eval::CloudEvaluation& result) {
 }
 
 /// --cloud: a multi-line bag against its truth.
-int cloudMetrics(const std::string& bag_path, const std::string& truth_path, bool markdown) {
+int cloudMetrics(const std::string& bag_path, const std::string& truth_path, bool markdown,
+                 const lidar_deskew::ros_adapter::DeskewParams& params) {
   using namespace lidar_deskew;
-  const eval::CloudEvaluation result =
-      eval::evaluateCloudBag(bag_path, truth_path, "/points", ros_adapter::DeskewParams());
+  const eval::CloudEvaluation result = eval::evaluateCloudBag(bag_path, truth_path, "/points", params);
   if (markdown) {
     std::printf("| %s | %s | %zu | %.0f | %s | %s | %s | %s | %s | %s |\n", result.scenario.c_str(),
                 result.convention.c_str(), result.clouds, result.range_sigma_mm, triple(result.raw).c_str(),
@@ -114,6 +116,7 @@ int main(int argc, char** argv) {
   if (bag_path.empty() || truth_path.empty())
     return usage(argv[0]);
   try {
+    ros_adapter::DeskewParams params;
     if (!params_file.empty()) {
       const std::map<std::string, std::string> values = ros_adapter::readParamFile(params_file);
       std::vector<std::string> names;
@@ -121,13 +124,12 @@ int main(int argc, char** argv) {
         names.push_back(entry.first);
       for (const std::string& unknown : ros_adapter::DeskewParams::unknownNames(names))
         throw std::runtime_error(params_file + ": unknown parameter " + unknown);
-      const ros_adapter::DeskewParams params =
-          ros_adapter::DeskewParams::load(ros_adapter::TextParams(values));
+      params = ros_adapter::DeskewParams::load(ros_adapter::TextParams(values));
       options.timing = params.timing;
       options.deskew.interpolation = params.deskew.interpolation;
     }
     if (cloud)
-      return cloudMetrics(bag_path, truth_path, markdown);
+      return cloudMetrics(bag_path, truth_path, markdown, params);
     const eval::Evaluation result = eval::evaluateBag(bag_path, truth_path, options);
     if (markdown) {
       std::printf("| %s | %zu | %.0f | %s | %s | %s | %s |\n", result.scenario.c_str(), result.scans,

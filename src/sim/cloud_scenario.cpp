@@ -9,6 +9,8 @@ namespace lidar_deskew::sim {
 namespace {
 
 constexpr double kDegree = M_PI / 180.0;
+/// [s] The smooth drives: one period of the turn rate (13 sweeps at 10 Hz), as the planar ones.
+constexpr double kSmoothDuration = 1.3;
 
 std::shared_ptr<const Trajectory3> makeTrajectory(const Pose2& start, const std::vector<MotionPiece>& pieces,
                                                   const std::optional<RoughGround>& rough) {
@@ -38,6 +40,12 @@ CloudScenario makeScenario(const SpinningLidarModel& lidar, const std::string& s
     scenario.pieces = {{scenario.duration, 0.0, 0.0, w}};
   } else if (motion == "arc") {
     scenario.pieces = {{scenario.duration, v, 0.0, w}};
+  } else if (motion == "smooth") {
+    // As the planar smooth drives (smoothScenarios): speed and turn rate follow cosines, so the twist
+    // changes between any two tf samples. Pieces to well past the last sweep and tf's margin.
+    scenario.start = {-10.0, -1.5, 0.0};
+    scenario.duration = kSmoothDuration;
+    scenario.pieces = smoothUnicyclePieces(v, w, kSmoothDuration + 1.0);
   } else {
     // As ILD26TRI/varying/varying: every 40 ms (two periods of 50 Hz tf) the speed ramp flips
     // (1 -> 3 -> 5 -> 3 -> 1 m/s at 50 m/s^2) and the turn rate flips between +4 and -4 rad/s.
@@ -79,8 +87,20 @@ std::vector<CloudScenario> cloudScenarios() {
   return scenarios;
 }
 
+std::vector<CloudScenario> cloudSmoothScenarios() {
+  std::vector<CloudScenario> scenarios;
+  for (const SpinningLidarModel& lidar : {SpinningLidarModel::vlp16(), SpinningLidarModel::os1_64()}) {
+    for (const std::string speed : {"normal", "high", "rough"})
+      scenarios.push_back(makeScenario(lidar, speed, "smooth"));
+  }
+  return scenarios;
+}
+
 CloudScenario findCloudScenario(const std::string& name) {
-  return truth_text::findByName(cloudScenarios(), name, "cloud scenario");
+  std::vector<CloudScenario> scenarios = cloudScenarios();
+  for (CloudScenario& scenario : cloudSmoothScenarios())
+    scenarios.push_back(std::move(scenario));
+  return truth_text::findByName(scenarios, name, "cloud scenario");
 }
 
 std::shared_ptr<const Trajectory3> CloudTruth::trajectory() const {

@@ -4,7 +4,7 @@
 // layout).
 //
 //   deskew_simulate --list | --list-paper | --list-calibration | --list-smooth | --list-clouds |
-//                   --list-conventions
+//                   --list-cloud-smooth | --list-conventions
 //   deskew_simulate --scenario UTM-30LX/high/arc --bag out.bag --truth out.truth [--noise] [--seed N]
 //                   [--tf-rate HZ] [--tf-margin S] [--clockwise] [--duration S] [--stamp-error S |
 //                   --stamp-at-end] [--reversed] [--time-increment-factor F] [--zero-scan-time]
@@ -28,7 +28,7 @@ int usage(const char* program) {
   std::fprintf(
       stderr,
       "usage: %s --list | --list-paper | --list-calibration | --list-smooth | --list-clouds |\n"
-      "          --list-conventions\n"
+      "          --list-cloud-smooth | --list-conventions\n"
       "       %s --scenario NAME --bag OUT.bag --truth OUT.truth [--noise] [--seed N] [--tf-rate HZ]\n"
       "          [--tf-margin S] [--clockwise] [--duration S] [--stamp-error S | --stamp-at-end]\n"
       "          [--reversed] [--time-increment-factor F] [--zero-scan-time]\n"
@@ -40,6 +40,8 @@ int usage(const char* program) {
       "  --list-calibration  the drives for timing calibration (SENSOR/normal|high/turns, SENSOR/normal/spin|circle)\n"
       "  --list-smooth       speed and turn rate changing between samples too (SENSOR/normal|high/smooth)\n"
       "  --list-clouds       the multi-line scenarios (PointCloud2 on /points, frame lidar)\n"
+      "  --list-cloud-smooth multi-line, speed and turn rate changing between samples too\n"
+      "                      (SENSOR/normal|high|rough/smooth)\n"
       "  --list-conventions  the drivers' cloud layouts for --convention\n"
       "  --tf-margin S       odometry from S before the first scan to S after the last (default 0.1)\n"
       "  --odom-noise R      odometry (/tf odom -> base_link, /odom) off by R relative per 20 ms step in\n"
@@ -77,8 +79,9 @@ int main(int argc, char** argv) {
       for (const sim::Scenario& scenario : scenarios)
         std::printf("%s\n", scenario.name.c_str());
       return 0;
-    } else if (arg == "--list-clouds") {
-      for (const sim::CloudScenario& scenario : sim::cloudScenarios())
+    } else if (arg == "--list-clouds" || arg == "--list-cloud-smooth") {
+      for (const sim::CloudScenario& scenario :
+           arg == "--list-clouds" ? sim::cloudScenarios() : sim::cloudSmoothScenarios())
         std::printf("%s\n", scenario.name.c_str());
       return 0;
     } else if (arg == "--list-conventions") {

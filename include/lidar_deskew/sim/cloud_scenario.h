@@ -17,7 +17,7 @@ struct CloudScenario {
   std::string name;  ///< "<sensor>/<speed>/<motion>", e.g. "VLP16/rough/arc"
   SpinningLidarModel lidar;
   std::string speed;   ///< "static", "normal", "high", "varying" or "rough"
-  std::string motion;  ///< "still", "arc", "turn" or "varying"
+  std::string motion;  ///< "still", "arc", "turn", "varying" or "smooth"
   Pose3 mount;         ///< sensor on the base
   Pose2 start;         ///< base pose in the world at t = 0 (planar part)
   std::vector<MotionPiece> pieces;
@@ -39,7 +39,16 @@ struct CloudScenario {
 /// centre, as the planar high-speed cases). Start (-10, 0.5, 0) as the planar suite; 1 s, 10 sweeps.
 /// 14 scenarios.
 std::vector<CloudScenario> cloudScenarios();
-/// The scenario of that name; throws std::invalid_argument listing the names otherwise.
+/// Motion whose twist changes all the time, between tf samples too, as the planar smoothScenarios()
+/// (sim::smoothUnicyclePieces): the speed follows a cosine of period 2 s from its peak through zero into
+/// reverse, the turn rate one of period 1.3 s. For VLP16 and OS1-64 each: "normal/smooth" (peaks
+/// 1.5 m/s and 2 rad/s), "high/smooth" (6 m/s and 5 rad/s) and "rough/smooth" (the normal drive on
+/// RoughGround's defaults). Mounts as cloudScenarios() (high: off the rotation centre); start
+/// (-10, -1.5, 0) as the planar smooth drives, 1.3 s (one period of the turn rate), 13 sweeps.
+/// 6 scenarios, not part of cloudScenarios() (docs/RESULTS_CLOUDS.md has them in their own table).
+std::vector<CloudScenario> cloudSmoothScenarios();
+/// The scenario of that name, of cloudScenarios() or cloudSmoothScenarios(); throws
+/// std::invalid_argument listing the names otherwise.
 CloudScenario findCloudScenario(const std::string& name);
 
 /// What an evaluator needs to know about a simulated cloud bag: the world, the true motion, the mount,
