@@ -287,6 +287,11 @@ void ScanRebinner::readPoints(const Points& points, const BinSweep& sweep) {
   };
   const bool running = running_;
   std::size_t hint = 0;
+  // The two points before j, carried in registers (stores through the byte flags would reload them).
+  double x1 = 0.0, y1 = 0.0, x0 = 0.0, y0 = 0.0;
+  double low1 = 0.0;  // max(|x1|, |y1|)
+  std::uint32_t beam1 = 0;
+  bool linked0 = false, joined0 = false;  // the link from the point before j - 1 to j - 1
   // One pass: point j read (and its running bin position found from the previous point's); the link
   // from point j - 1 to j; and point j - 1's distance from the line through its neighbours.
   for (std::size_t j = 0; j < point_count; ++j) {
@@ -301,16 +306,46 @@ void ScanRebinner::readPoints(const Points& points, const BinSweep& sweep) {
       if (position[j] != kUnknown)
         hint = position[j];
     }
-    if (j == 0)
-      continue;
-    const std::size_t i = j - 1;
-    const bool neighbours = points[j].beam_index == points[i].beam_index + 1;
-    next[i] = neighbours ? j : kNoPoint;
-    joined[i] = neighbours && isJoined(i, j);
-    // point 0's previous point, on a full circle the last, is not known yet: measured again below
-    const std::size_t p = i > 0 && next[i - 1] == i ? i - 1 : kNoPoint;
-    if (measureResidual(i, p))
-      candidates[candidate_count++] = static_cast<std::uint32_t>(i);
+    // max(|x|, |y|) is never more than the range (as sqrt rounds it): a gap from it is never wider than
+    // joinGap, so within it the points are joined without a square root.
+    const double low = std::max(std::abs(px), std::abs(py));
+    const std::uint32_t beam = points[j].beam_index;
+    if (j > 0) {
+      const std::size_t i = j - 1;
+      const bool neighbours = beam == beam1 + 1;
+      next[i] = neighbours ? j : kNoPoint;
+      bool joined_i = false;
+      if (neighbours) {
+        const double dx = px - x1, dy = py - y1;
+        const double distance2 = dx * dx + dy * dy;
+        const double low_limit = min_gap + gap_factor * std::max(low1, low) * abs_increment;
+        if (distance2 <= low_limit * low_limit) {
+          joined_i = true;
+        } else {
+          const double limit = joinGap(i, j, abs_increment);
+          joined_i = distance2 <= limit * limit;
+        }
+      }
+      joined[i] = joined_i;
+      // point 0's previous point, on a full circle the last, is not known yet: measured again below
+      length2[i] = 0.0;  // no neighbours' line: never flat
+      if (i > 0 && linked0 && neighbours) {
+        const double ex = px - x0, ey = py - y0;
+        const double c = cross(ex, ey, x1 - x0, y1 - y0);
+        length2[i] = ex * ex + ey * ey;
+        cross2[i] = c * c;
+        if (length2[i] != 0.0 && joined0 && joined_i)
+          candidates[candidate_count++] = static_cast<std::uint32_t>(i);
+      }
+      linked0 = neighbours;
+      joined0 = joined_i;
+    }
+    x0 = x1;
+    y0 = y1;
+    x1 = px;
+    y1 = py;
+    low1 = low;
+    beam1 = beam;
   }
   if (point_count > 0) {
     // For a full-circle grid the last beam also neighbours the first.
