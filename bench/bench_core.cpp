@@ -14,6 +14,7 @@
 #include "lidar_deskew/core/rebin.h"
 #include "lidar_deskew/sim/sim.h"
 #include "summary_run.h"
+#include "support/reference_rebin.h"
 
 namespace {
 
@@ -76,14 +77,16 @@ BENCHMARK(BM_DeskewScan)
     ->Args({1440, 1})
     ->Args({1440, 0});
 
-void BM_Rebin(benchmark::State& state) {
+/// Re-binning one corrected scan with `Rebinner` (core::ScanRebinner, or the one issue 25 replaced).
+template <typename Rebinner>
+void rebinScan(benchmark::State& state) {
   Fixture fixture(static_cast<int>(state.range(0)));
   core::ScanDeskewer deskewer;
   core::DeskewedScan corrected;
   deskewer.deskew(fixture.simulated.scan, fixture.timing, toMrpt(fixture.mount), fixture.poses, corrected);
   const core::AngleGrid grid{fixture.simulated.scan.angle_min, fixture.simulated.scan.angle_increment,
                              fixture.simulated.scan.ranges.size()};
-  core::ScanRebinner rebinner;
+  Rebinner rebinner;
   core::RebinnedScan out;
   for (auto _ : state) {
     rebinner.rebin(corrected, grid, core::noReturnValue(fixture.simulated.scan), out);
@@ -91,7 +94,15 @@ void BM_Rebin(benchmark::State& state) {
   }
   setPerPoint(state, fixture.simulated.scan.ranges.size());
 }
+void BM_Rebin(benchmark::State& state) {
+  rebinScan<core::ScanRebinner>(state);
+}
 BENCHMARK(BM_Rebin)->ArgNames({"beams"})->Arg(360)->Arg(1080)->Arg(1440);
+/// The re-binner before issue 25 (test/support/reference_rebin.h), for the comparison in one run.
+void BM_RebinReference(benchmark::State& state) {
+  rebinScan<test::ReferenceRebinner>(state);
+}
+BENCHMARK(BM_RebinReference)->ArgNames({"beams"})->Arg(360)->Arg(1080)->Arg(1440);
 
 // A 3D-style cloud: 128 rings x 1024 columns at 10 Hz, each column 1/10240 s after the previous.
 void BM_DeskewPointsPerPointTimes(benchmark::State& state) {

@@ -167,104 +167,223 @@ ScanRebinner::ScanRebinner(const RebinConfig& config) : config_(config) {
   config_.validate();
 }
 
+namespace {
+
+/// A point's running bin position moves at most this many rays from its hint before it is found again
+/// from the point's bearing (a contour start after a long gap, a fold-over).
+constexpr int kMaxWalk = 16;
+/// Running bin positions need the rays of the whole circle; grids finer than this many rays per turn
+/// (or wider than a turn) are swept by bearing instead.
+constexpr double kMaxRunningRays = 1 << 16;
+constexpr std::size_t kUnknown = static_cast<std::size_t>(-1);
+/// A quantity decided by a squared comparison is decided exactly (as sqrt and division would) when it is
+/// this close, relatively, to its threshold.
+constexpr double kSquaredMargin = 1e-9;
+
+}  // namespace
+
 void ScanRebinner::updateRays(const AngleGrid& grid) {
-  if (ray_cos_.size() == grid.count && rays_grid_.angle_min == grid.angle_min &&
-      rays_grid_.angle_increment == grid.angle_increment) {
+  if (ray_cos_.size() == ray_count_ && rays_grid_.count == grid.count &&
+      rays_grid_.angle_min == grid.angle_min && rays_grid_.angle_increment == grid.angle_increment &&
+      best_range_.size() == grid.count) {
     return;
   }
   rays_grid_ = grid;
-  ray_cos_.resize(grid.count);
-  ray_sin_.resize(grid.count);
-  for (std::size_t b = 0; b < grid.count; ++b) {
+  const double abs_increment = std::abs(static_cast<double>(grid.angle_increment));
+  // Rays past the grid's last bin up to a full turn (not offered) let a bin position run modulo
+  // ray_count_ around the circle.
+  const double rays_per_turn = abs_increment > 0.0 ? (kTwoPi - 1e-9) / abs_increment : kInfinity;
+  running_ = grid.count > 1 && rays_per_turn <= kMaxRunningRays &&
+             abs_increment * static_cast<double>(grid.count - 1) < kTwoPi - 1e-9;
+  ray_count_ =
+      running_ ? std::max(grid.count, static_cast<std::size_t>(std::floor(rays_per_turn)) + 1) : grid.count;
+  direction_ = grid.angle_increment < 0.0f ? -1.0 : 1.0;
+  ray_cos_.resize(ray_count_);
+  ray_sin_.resize(ray_count_);
+  for (std::size_t b = 0; b < ray_count_; ++b) {
     const double angle = static_cast<double>(grid.angle_min) + static_cast<double>(b) * grid.angle_increment;
     ray_cos_[b] = std::cos(angle);
     ray_sin_[b] = std::sin(angle);
   }
+  // Every bin starts with no crossing; writeNearestCrossings() leaves them so for the next scan.
+  best_range_.assign(grid.count, kInfinity);
+  best_intensity_.assign(grid.count, 0.0f);
 }
 
 void ScanRebinner::rebin(const DeskewedScan& corrected, const AngleGrid& grid, float no_return,
                          RebinnedScan& out) {
   checkGrid(grid);
   updateRays(grid);
-  clearBins(grid.count);
-  computePolarPoints(corrected.points);
+  if (bins_in_use_) {  // the last scan stopped (an allocation failed) before leaving its bins empty
+    std::fill(best_range_.begin(), best_range_.end(), kInfinity);
+    std::fill(best_intensity_.begin(), best_intensity_.end(), 0.0f);
+  }
+  with_intensities_ = corrected.has_intensities;
   const BinSweep sweep(grid);
-  linkContourNeighbours(corrected.points, sweep);
+  readPoints(corrected.points, sweep);
   findFlatPoints();
   classifyLinks(sweep);
+  bins_in_use_ = true;
   traceContours(corrected.points, sweep);
-  writeNearestCrossings(corrected.has_intensities, no_return, out);
+  writeNearestCrossings(no_return, out);
+  bins_in_use_ = false;
 }
 
-void ScanRebinner::clearBins(std::size_t bin_count) {
-  best_range_.assign(bin_count, std::numeric_limits<double>::infinity());
-  best_intensity_.assign(bin_count, 0.0f);
-}
-
-void ScanRebinner::computePolarPoints(const Points& points) {
+void ScanRebinner::readPoints(const Points& points, const BinSweep& sweep) {
   const std::size_t point_count = points.size();
   x_.resize(point_count);
   y_.resize(point_count);
-  range_.resize(point_count);
-  bearing_.resize(point_count);
+  next_.resize(point_count);
+  joined_.resize(point_count);
+  cross2_.resize(point_count);
+  length2_.resize(point_count);
+  candidates_.resize(point_count);
+  // Ranges and bearings only where a rule needs them (see rangeOf, bearingOf).
+  range_.assign(point_count, -1.0);
+  bearing_.assign(point_count, kInfinity);
+  position_.resize(point_count);
+  side_low_.resize(point_count);
+  side_high_.resize(point_count);
+  // Plain pointers: stores through the char flags would otherwise reload every vector's data.
+  double* const x = x_.data();
+  double* const y = y_.data();
+  std::size_t* const next = next_.data();
+  char* const joined = joined_.data();
+  double* const cross2 = cross2_.data();
+  double* const length2 = length2_.data();
+  std::uint32_t* const candidates = candidates_.data();
+  std::size_t* const position = position_.data();
+  double* const side_low = side_low_.data();
+  double* const side_high = side_high_.data();
+  std::size_t candidate_count = 0;
+  const double abs_increment = sweep.absIncrement();
+  const double min_gap = config_.min_gap, gap_factor = config_.gap_factor;
+  const auto isJoined = [&](std::size_t a, std::size_t b) {
+    const double dx = x[b] - x[a], dy = y[b] - y[a];
+    const double distance2 = dx * dx + dy * dy;
+    // max(|x|, |y|) is never more than the range (as sqrt rounds it): a gap from it is never wider than
+    // joinGap, so within it the points are joined without a square root.
+    const double low =
+        std::max(std::max(std::abs(x[a]), std::abs(y[a])), std::max(std::abs(x[b]), std::abs(y[b])));
+    const double low_limit = min_gap + gap_factor * low * abs_increment;
+    if (distance2 <= low_limit * low_limit)
+      return true;
+    const double limit = joinGap(a, b, abs_increment);
+    return distance2 <= limit * limit;
+  };
+  // A point's distance from the line through its neighbours (p, next[j]) is |cross| / length; kept as
+  // cross^2 and length^2 (no square root, no division), exactly only for the noise sample and near the
+  // tolerance (findFlatPoints). Points with both links joined estimate the noise (candidates).
+  const auto measureResidual = [&](std::size_t j, std::size_t p) {
+    const std::size_t q = next[j];
+    length2[j] = 0.0;  // no neighbours' line: never flat
+    if (p == kNoPoint || q == kNoPoint)
+      return false;
+    const double ex = x[q] - x[p], ey = y[q] - y[p];
+    const double c = cross(ex, ey, x[j] - x[p], y[j] - y[p]);
+    length2[j] = ex * ex + ey * ey;
+    cross2[j] = c * c;
+    return length2[j] != 0.0 && joined[p] && joined[j];
+  };
+  const bool running = running_;
+  std::size_t hint = 0;
+  // The two points before j, carried in registers (stores through the byte flags would reload them).
+  double x1 = 0.0, y1 = 0.0, x0 = 0.0, y0 = 0.0;
+  double low1 = 0.0;  // max(|x1|, |y1|)
+  std::uint32_t beam1 = 0;
+  bool linked0 = false, joined0 = false;  // the link from the point before j - 1 to j - 1
+  // One pass: point j read (and its running bin position found from the previous point's); the link
+  // from point j - 1 to j; and point j - 1's distance from the line through its neighbours.
   for (std::size_t j = 0; j < point_count; ++j) {
-    const double x = points[j].position.x(), y = points[j].position.y();
-    if (!std::isfinite(x) || !std::isfinite(y)) {
+    const double px = points[j].position.x(), py = points[j].position.y();
+    if (!std::isfinite(px) || !std::isfinite(py)) {
       throw InvalidInput("points", "corrected point " + std::to_string(j) + " is not finite");
     }
-    x_[j] = x;
-    y_[j] = y;
-    range_[j] = std::sqrt(x * x + y * y);
-    bearing_[j] = fastAtan2(y, x);
+    x[j] = px;
+    y[j] = py;
+    if (running) {
+      position[j] = locate(px, py, hint, side_low[j], side_high[j]);
+      if (position[j] != kUnknown)
+        hint = position[j];
+    }
+    // max(|x|, |y|) is never more than the range (as sqrt rounds it): a gap from it is never wider than
+    // joinGap, so within it the points are joined without a square root.
+    const double low = std::max(std::abs(px), std::abs(py));
+    const std::uint32_t beam = points[j].beam_index;
+    if (j > 0) {
+      const std::size_t i = j - 1;
+      const bool neighbours = beam == beam1 + 1;
+      next[i] = neighbours ? j : kNoPoint;
+      bool joined_i = false;
+      if (neighbours) {
+        const double dx = px - x1, dy = py - y1;
+        const double distance2 = dx * dx + dy * dy;
+        const double low_limit = min_gap + gap_factor * std::max(low1, low) * abs_increment;
+        if (distance2 <= low_limit * low_limit) {
+          joined_i = true;
+        } else {
+          const double limit = joinGap(i, j, abs_increment);
+          joined_i = distance2 <= limit * limit;
+        }
+      }
+      joined[i] = joined_i;
+      // point 0's previous point, on a full circle the last, is not known yet: measured again below
+      length2[i] = 0.0;  // no neighbours' line: never flat
+      if (i > 0 && linked0 && neighbours) {
+        const double ex = px - x0, ey = py - y0;
+        const double c = cross(ex, ey, x1 - x0, y1 - y0);
+        length2[i] = ex * ex + ey * ey;
+        cross2[i] = c * c;
+        if (length2[i] != 0.0 && joined0 && joined_i)
+          candidates[candidate_count++] = static_cast<std::uint32_t>(i);
+      }
+      linked0 = neighbours;
+      joined0 = joined_i;
+    }
+    x0 = x1;
+    y0 = y1;
+    x1 = px;
+    y1 = py;
+    low1 = low;
+    beam1 = beam;
   }
+  if (point_count > 0) {
+    // For a full-circle grid the last beam also neighbours the first.
+    const std::size_t last = point_count - 1;
+    const bool wraps = sweep.isFullCircle() && point_count > 2 && points.front().beam_index == 0 &&
+                       points.back().beam_index + 1 == sweep.binCount();
+    next[last] = wraps ? 0 : kNoPoint;
+    joined[last] = wraps && isJoined(last, 0);
+    if (measureResidual(last, previous(last)))
+      candidates[candidate_count++] = static_cast<std::uint32_t>(last);
+    if (wraps && measureResidual(0, last)) {  // point 0 comes first
+      std::copy_backward(candidates, candidates + candidate_count, candidates + candidate_count + 1);
+      candidates[0] = 0;
+      ++candidate_count;
+    }
+  }
+  candidates_.resize(candidate_count);
 }
 
-void ScanRebinner::linkContourNeighbours(const Points& points, const BinSweep& sweep) {
-  const std::size_t point_count = points.size();
-  next_.assign(point_count, kNoPoint);
-  joined_.assign(point_count, 0);
-  for (std::size_t j = 0; j + 1 < point_count; ++j) {
-    if (points[j + 1].beam_index == points[j].beam_index + 1)
-      next_[j] = j + 1;
-  }
-  // For a full-circle grid the last beam also neighbours the first.
-  if (sweep.isFullCircle() && point_count > 2 && points.front().beam_index == 0 &&
-      points.back().beam_index + 1 == sweep.binCount()) {
-    next_[point_count - 1] = 0;
-  }
-  for (std::size_t j = 0; j < point_count; ++j) {
-    const std::size_t k = next_[j];
-    if (k == kNoPoint)
-      continue;
-    const double dx = x_[k] - x_[j], dy = y_[k] - y_[j];
-    const double limit = joinGap(j, k, sweep.absIncrement());
-    joined_[j] = dx * dx + dy * dy <= limit * limit;
-  }
+double ScanRebinner::rangeOf(std::size_t j) {
+  if (range_[j] < 0.0)
+    range_[j] = std::sqrt(x_[j] * x_[j] + y_[j] * y_[j]);
+  return range_[j];
+}
+
+double ScanRebinner::bearingOf(std::size_t j) {
+  if (bearing_[j] == kInfinity)
+    bearing_[j] = fastAtan2(y_[j], x_[j]);
+  return bearing_[j];
 }
 
 void ScanRebinner::findFlatPoints() {
   const std::size_t point_count = x_.size();
-  residuals_.assign(point_count, -1.0);
-  std::size_t candidates = 0;
-  for (std::size_t j = 0; j < point_count; ++j) {
-    const std::size_t p = previous(j), q = next_[j];
-    if (p == kNoPoint || q == kNoPoint)
-      continue;
-    const double ex = x_[q] - x_[p], ey = y_[q] - y_[p];
-    const double length = std::sqrt(ex * ex + ey * ey);
-    if (length == 0.0)
-      continue;
-    residuals_[j] = std::abs(cross(ex, ey, x_[j] - x_[p], y_[j] - y_[p])) / length;
-    candidates += joined_[p] && joined_[j];
-  }
   // The scan's own noise: the median distance of points within one contour, from every stride-th.
   noise_sample_.clear();
-  const std::size_t stride = std::max<std::size_t>(1, candidates / kNoiseSampleSize);
-  std::size_t seen = 0;
-  for (std::size_t j = 0; j < point_count; ++j) {
-    if (residuals_[j] >= 0.0 && joined_[j] && joined_[previous(j)] && seen++ % stride == 0)
-      noise_sample_.push_back(residuals_[j]);
-  }
+  const std::size_t stride = std::max<std::size_t>(1, candidates_.size() / kNoiseSampleSize);
+  for (std::size_t s = 0; s < candidates_.size(); s += stride)
+    noise_sample_.push_back(residual(candidates_[s]));
   double median = 0.0;
   if (!noise_sample_.empty()) {
     const auto middle = noise_sample_.begin() + static_cast<std::ptrdiff_t>(noise_sample_.size() / 2);
@@ -272,25 +391,53 @@ void ScanRebinner::findFlatPoints() {
     median = *middle;
   }
   flat_tolerance_ = kFlatToleranceFloor + kFlatToleranceMedians * median;
+  const double tolerance2 = flat_tolerance_ * flat_tolerance_;
   flat_.resize(point_count);
-  for (std::size_t j = 0; j < point_count; ++j)
-    flat_[j] = residuals_[j] >= 0.0 && residuals_[j] <= flat_tolerance_;
+  char* const flat = flat_.data();
+  const double* const cross2 = cross2_.data();
+  const double* const length2 = length2_.data();
+  for (std::size_t j = 0; j < point_count; ++j) {
+    const double limit2 = tolerance2 * length2[j];
+    if (length2[j] == 0.0) {
+      flat[j] = 0;
+    } else if (cross2[j] <= limit2 * (1.0 - kSquaredMargin) && limit2 > 1e-200) {
+      flat[j] = 1;
+    } else if (cross2[j] >= limit2 * (1.0 + kSquaredMargin) && limit2 > 1e-200) {
+      flat[j] = 0;
+    } else {
+      flat[j] = residual(j) <= flat_tolerance_;  // near the tolerance: as sqrt and division decide it
+    }
+  }
+}
+
+double ScanRebinner::residual(std::size_t j) const {
+  const std::size_t p = previous(j), q = next_[j];
+  const double ex = x_[q] - x_[p], ey = y_[q] - y_[p];
+  const double length = std::sqrt(ex * ex + ey * ey);
+  return std::abs(cross(ex, ey, x_[j] - x_[p], y_[j] - y_[p])) / length;
 }
 
 void ScanRebinner::classifyLinks(const BinSweep& sweep) {
   const std::size_t point_count = x_.size();
-  link_.assign(point_count, Link::kNone);
+  link_.resize(point_count);
   corner_x_.resize(point_count);
   corner_y_.resize(point_count);
-  // First the links one of whose points is flat (surfaces) and the corners; the rest wait (kStep).
+  // First the links one of whose points is flat (surfaces) and the corners; the rest wait (kStep) for
+  // traceContours(), which tells a depth step from the surfaces on both sides.
+  const std::size_t* const next = next_.data();
+  const char* const flat = flat_.data();
+  const char* const joined = joined_.data();
+  Link* const link = link_.data();
   for (std::size_t j = 0; j < point_count; ++j) {
-    const std::size_t q = next_[j];
-    if (q == kNoPoint)
+    const std::size_t q = next[j];
+    if (q == kNoPoint) {
+      link[j] = Link::kNone;
       continue;
+    }
     // One of them flat (the line through its neighbours holds the other), and joined or (a wall seen at
     // a grazing angle, its points farther apart than the gap) nearly joined.
-    if ((flat_[j] || flat_[q]) && (joined_[j] || nearlyJoined(j, q, sweep))) {
-      link_[j] = Link::kSurface;
+    if ((flat[j] || flat[q]) && (joined[j] || nearlyJoined(j, q, sweep))) {
+      link[j] = Link::kSurface;
       continue;
     }
     // A corner: its three links joined; or, in a scan with little noise, a wall at a grazing angle (its
@@ -302,26 +449,28 @@ void ScanRebinner::classifyLinks(const BinSweep& sweep) {
     const std::size_t p = previous(j), r = next_[q];
     if (p != kNoPoint && r != kNoPoint && close(j, q, kNoPoint) && close(p, j, p) && close(q, r, r) &&
         findCorner(p, j, q, r, corner_x_[j], corner_y_[j])) {
-      link_[j] = Link::kCorner;
+      link[j] = Link::kCorner;
       continue;
     }
-    link_[j] = Link::kStep;
+    link[j] = Link::kStep;
   }
+}
+
+ScanRebinner::Link ScanRebinner::resolveStep(std::size_t j, const BinSweep& sweep) {
   // A waiting link is a depth step when its farther point continues a surface on its other side.
-  for (std::size_t j = 0; j < point_count; ++j) {
-    if (link_[j] != Link::kStep)
-      continue;
-    const std::size_t q = next_[j];
-    const bool far_is_next = range_[q] > range_[j];
-    const std::size_t far_side = far_is_next ? q : previous(j);
-    const bool far_continues = far_side != kNoPoint && link_[far_side] == Link::kSurface;
-    const bool adjacent =
-        std::abs(wrapDelta(bearing_[q] - bearing_[j])) <= kMaxStepBins * sweep.absIncrement();
-    if (!far_continues || !adjacent || std::abs(range_[q] - range_[j]) <= flat_tolerance_ ||
-        !continuationIsSure(far_is_next ? j : q, far_is_next ? q : j, far_is_next ? next_[q] : previous(j))) {
-      link_[j] = joined_[j] ? Link::kChord : Link::kNone;
-    }
+  const std::size_t q = next_[j];
+  const bool far_is_next = rangeOf(q) > rangeOf(j);
+  const std::size_t far_side = far_is_next ? q : previous(j);
+  const bool far_continues = far_side != kNoPoint && link_[far_side] == Link::kSurface;
+  if (!far_continues)
+    return joined_[j] ? Link::kChord : Link::kNone;
+  const bool adjacent =
+      std::abs(wrapDelta(bearingOf(q) - bearingOf(j))) <= kMaxStepBins * sweep.absIncrement();
+  if (!adjacent || std::abs(rangeOf(q) - rangeOf(j)) <= flat_tolerance_ ||
+      !continuationIsSure(far_is_next ? j : q, far_is_next ? q : j, far_is_next ? next_[q] : previous(j))) {
+    return joined_[j] ? Link::kChord : Link::kNone;
   }
+  return Link::kStep;
 }
 
 void ScanRebinner::traceContours(const Points& points, const BinSweep& sweep) {
@@ -330,103 +479,134 @@ void ScanRebinner::traceContours(const Points& points, const BinSweep& sweep) {
   const auto intensity = [&](std::size_t j) { return points[j].intensity; };
   // Precise enough that a guess, not the noise, would be the error: guesses are left out (kGuessBudget).
   const bool precise = flat_tolerance_ <= kStepErrorBudget;
-  const auto endReach = [&](std::size_t a, std::size_t b) {
-    return precise ? std::min(kGuessBudget, joinGap(a, b, abs_increment)) : joinGap(a, b, abs_increment);
-  };
+  const auto continues = [](Link link) { return link != Link::kNone && link != Link::kStep; };
+  // Plain pointers and locals: a store through a byte (a resolved link) may alias any member.
+  const double* const x = x_.data();
+  const double* const y = y_.data();
+  const std::size_t* const next = next_.data();
+  Link* const link = link_.data();
+  const std::size_t* const position = position_.data();
+  const double* const side_low = side_low_.data();
+  const double* const side_high = side_high_.data();
+  const bool running = running_, with_intensities = with_intensities_;
+  // One pass over the links in order (so the nearest crossing of a bin is chosen as before when two are
+  // equally near); the points where a contour ends are noted on the way and traced after every link.
+  ends_.clear();
   for (std::size_t j = 0; j < point_count; ++j) {
-    const std::size_t q = next_[j];
-    switch (link_[j]) {
-      case Link::kNone:
-        break;
-      case Link::kChord:
-        if (precise && std::hypot(x_[q] - x_[j], y_[q] - y_[j]) > 2.0 * kGuessBudget)
-          break;  // its surface cannot be told: left empty
-        [[fallthrough]];
-      case Link::kSurface:
-        crossSegment(x_[j], y_[j], bearing_[j], intensity(j), x_[q], y_[q], bearing_[q], intensity(q), sweep);
-        break;
-      case Link::kCorner: {
-        const double cx = corner_x_[j], cy = corner_y_[j], corner_bearing = fastAtan2(cy, cx);
-        crossSegment(x_[j], y_[j], bearing_[j], intensity(j), cx, cy, corner_bearing, intensity(j), sweep);
-        crossSegment(cx, cy, corner_bearing, intensity(q), x_[q], y_[q], bearing_[q], intensity(q), sweep);
-        break;
-      }
-      case Link::kStep: {
-        // The far contour's end segment continued behind the near point, over the bearings between.
-        const bool far_is_next = range_[q] > range_[j];
-        const std::size_t near = far_is_next ? j : q, far = far_is_next ? q : j;
-        const std::size_t beyond = far_is_next ? next_[q] : previous(j);
-        const double delta = wrapDelta(bearing_[far] - bearing_[near]);
-        extendLine(points, far, x_[far] - x_[beyond], y_[far] - y_[beyond], kInfinity, range_[near],
-                   std::min(bearing_[near], bearing_[near] + delta), std::abs(delta), sweep, kMaxStepSlant,
-                   false, range_[far] + flat_tolerance_);
-        break;
-      }
+    const std::size_t q = next[j];
+    Link kind = link[j];
+    if (kind == Link::kStep) {
+      kind = resolveStep(j, sweep);  // a step's far side is only compared with kSurface: order is free
+      link[j] = kind;
     }
+    if (kind == Link::kSurface ||
+        (kind == Link::kChord && !(precise && std::hypot(x[q] - x[j], y[q] - y[j]) > 2.0 * kGuessBudget))) {
+      // A segment (a chord longer than 2 kGuessBudget: its surface cannot be told, left empty). Less than
+      // a quarter turn wide (so not through the sensor): by running bin positions.
+      const float a_intensity = with_intensities ? intensity(j) : 0.0f;
+      const float b_intensity = with_intensities ? intensity(q) : 0.0f;
+      const double ax = x[j], ay = y[j], bx = x[q], by = y[q];
+      if (running && ax * bx + ay * by > 0.0 && position[j] != kUnknown && position[q] != kUnknown) {
+        crossRays(ax, ay, position[j], side_low[j], side_high[j], a_intensity, bx, by, position[q],
+                  side_low[q], side_high[q], b_intensity);
+      } else {
+        crossSegmentByBearing(ax, ay, bearingOf(j), a_intensity, bx, by, bearingOf(q), b_intensity, sweep);
+      }
+    } else if (kind == Link::kCorner) {
+      crossCorner(j, q, intensity(j), intensity(q), sweep);
+    } else if (kind == Link::kStep) {
+      // The far contour's end segment continued behind the near point, over the bearings between.
+      const bool far_is_next = rangeOf(q) > rangeOf(j);
+      const std::size_t near = far_is_next ? j : q, far = far_is_next ? q : j;
+      const std::size_t beyond = far_is_next ? next[q] : previous(j);
+      const double delta = wrapDelta(bearingOf(far) - bearingOf(near));
+      extendLine(points, far, x[far] - x[beyond], y[far] - y[beyond], kInfinity, rangeOf(near),
+                 std::min(bearingOf(near), bearingOf(near) + delta), std::abs(delta), sweep, kMaxStepSlant,
+                 false, rangeOf(far) + flat_tolerance_);
+    }
+    // Both links of point j are final now (point 0's left one, the full circle's last, comes last). A
+    // link of j - 1 that continues a contour joins it to j.
+    if (j > 0 && !(continues(link[j - 1]) && continues(kind)))
+      ends_.push_back(j);
+  }
+  if (point_count > 0) {
+    const std::size_t p = previous(0);
+    const Link right = next[0] == kNoPoint ? Link::kNone : link[0];
+    if (!(continues(p == kNoPoint ? Link::kNone : link[p]) && continues(right)))
+      ends_.insert(ends_.begin(), 0);
   }
   // Contour ends: where a point continues a contour on one side only, or on neither (a lone point).
-  for (std::size_t j = 0; j < point_count; ++j) {
+  for (const std::size_t j : ends_) {
     const std::size_t p = previous(j);
     const Link left = p == kNoPoint ? Link::kNone : link_[p];
     const Link right = next_[j] == kNoPoint ? Link::kNone : link_[j];
-    const auto continues = [](Link link) { return link != Link::kNone && link != Link::kStep; };
     const double half_bin = 0.5 * abs_increment;
-    if (continues(left) && continues(right))
-      continue;
+    const auto endReach = [&](std::size_t a, std::size_t b) {
+      return precise ? std::min(kGuessBudget, joinGap(a, b, abs_increment)) : joinGap(a, b, abs_increment);
+    };
     if (!continues(left) && !continues(right)) {
       // Lone return: a facet facing the sensor.
-      extendLine(points, j, -y_[j], x_[j], endReach(j, j), 0.0, bearing_[j] - half_bin, abs_increment, sweep);
+      extendLine(points, j, -y_[j], x_[j], endReach(j, j), 0.0, bearingOf(j) - half_bin, abs_increment,
+                 sweep);
       continue;
     }
     const bool from_left = continues(left);
     // Follow the end segment (from the neighbour, or the corner, towards j) for up to half a bin; the
     // near end of a step only into bins the far contour did not reach.
     const Link end = from_left ? right : left;
-    const bool near_end_of_step = end == Link::kStep && range_[j] < range_[from_left ? next_[j] : p];
+    const bool near_end_of_step = end == Link::kStep && rangeOf(j) < rangeOf(from_left ? next_[j] : p);
     const std::size_t neighbour = from_left ? p : next_[j];
-    const Link link = from_left ? left : right;
+    const Link kept = from_left ? left : right;
     const std::size_t corner_of = from_left ? p : j;
-    const double nx = link == Link::kCorner ? corner_x_[corner_of] : x_[neighbour];
-    const double ny = link == Link::kCorner ? corner_y_[corner_of] : y_[neighbour];
+    const double nx = kept == Link::kCorner ? corner_x_[corner_of] : x_[neighbour];
+    const double ny = kept == Link::kCorner ? corner_y_[corner_of] : y_[neighbour];
     extendLine(points, j, x_[j] - nx, y_[j] - ny, endReach(j, neighbour), 0.0,
-               bearing_[j] - half_bin - kBearingError, abs_increment + 2.0 * kBearingError, sweep, 0.0,
+               bearingOf(j) - half_bin - kBearingError, abs_increment + 2.0 * kBearingError, sweep, 0.0,
                near_end_of_step);
   }
 }
 
-void ScanRebinner::writeNearestCrossings(bool has_intensities, float no_return, RebinnedScan& out) const {
+void ScanRebinner::writeNearestCrossings(float no_return, RebinnedScan& out) {
   const std::size_t bin_count = best_range_.size();
   out.ranges.resize(bin_count);
+  // Each bin read, written out and left empty for the next scan: no separate clearing pass.
   for (std::size_t b = 0; b < bin_count; ++b) {
-    out.ranges[b] = std::isfinite(best_range_[b]) ? static_cast<float>(best_range_[b]) : no_return;
+    const double range = best_range_[b];
+    out.ranges[b] = std::isfinite(range) ? static_cast<float>(range) : no_return;
+    best_range_[b] = kInfinity;
   }
-  if (has_intensities) {
-    out.intensities = best_intensity_;
+  if (with_intensities_) {
+    out.intensities.resize(bin_count);
+    for (std::size_t b = 0; b < bin_count; ++b) {
+      out.intensities[b] = best_intensity_[b];
+      best_intensity_[b] = 0.0f;
+    }
   } else {
     out.intensities.clear();
   }
 }
 
-bool ScanRebinner::nearlyJoined(std::size_t a, std::size_t b, const BinSweep& sweep) const {
+bool ScanRebinner::nearlyJoined(std::size_t a, std::size_t b, const BinSweep& sweep) {
   const double abs_increment = sweep.absIncrement();
+  // the flat test is evidence of one surface only when the noise is small against the error budget
+  if (flat_tolerance_ > kStepErrorBudget)
+    return false;
   const double dx = x_[b] - x_[a], dy = y_[b] - y_[a];
   const double limit = kFlatJoinGaps * joinGap(a, b, abs_increment);
-  // the flat test is evidence of one surface only when the noise is small against the error budget
-  return flat_tolerance_ <= kStepErrorBudget &&
-         std::abs(wrapDelta(bearing_[b] - bearing_[a])) <= kMaxStepBins * abs_increment &&
+  return std::abs(wrapDelta(bearingOf(b) - bearingOf(a))) <= kMaxStepBins * abs_increment &&
          dx * dx + dy * dy <= limit * limit;
 }
 
-double ScanRebinner::joinGap(std::size_t a, std::size_t b, double abs_increment) const {
-  return config_.min_gap + config_.gap_factor * std::max(range_[a], range_[b]) * abs_increment;
+double ScanRebinner::joinGap(std::size_t a, std::size_t b, double abs_increment) {
+  return config_.min_gap + config_.gap_factor * std::max(rangeOf(a), rangeOf(b)) * abs_increment;
 }
 
-bool ScanRebinner::continuationIsSure(std::size_t near, std::size_t far, std::size_t beyond) const {
+bool ScanRebinner::continuationIsSure(std::size_t near, std::size_t far, std::size_t beyond) {
   if (beyond == kNoPoint)
     return false;
   const double segment = std::hypot(x_[far] - x_[beyond], y_[far] - y_[beyond]);
   // [m] how far the continuation runs along a wall facing the sensor: to the near point's bearing
-  const double run = range_[far] * std::abs(wrapDelta(bearing_[far] - bearing_[near]));
+  const double run = rangeOf(far) * std::abs(wrapDelta(bearingOf(far) - bearingOf(near)));
   return segment > 0.0 && flat_tolerance_ * (1.0 + run / segment) <= kStepErrorBudget;
 }
 
@@ -460,8 +640,169 @@ bool ScanRebinner::findCorner(std::size_t a0, std::size_t a, std::size_t b, std:
   return to_a2 <= 4.0 * chord2 && to_b2 <= 4.0 * chord2;  // plausibly near both
 }
 
-void ScanRebinner::crossSegment(double ax, double ay, double a_bearing, float a_intensity, double bx,
-                                double by, double b_bearing, float b_intensity, const BinSweep& sweep) {
+[[gnu::always_inline]] inline double ScanRebinner::side(std::size_t ray, double px, double py) const {
+  return direction_ * cross(ray_cos_[ray], ray_sin_[ray], px, py);
+}
+
+[[gnu::always_inline]] inline std::size_t ScanRebinner::walk(std::size_t ray, double px, double py,
+                                                             double& low, double& high) const {
+  double at = side(ray, px, py);
+  for (int step = 0; step < kMaxWalk; ++step) {
+    if (at < 0.0) {  // before this ray: one back
+      ray = ray == 0 ? ray_count_ - 1 : ray - 1;
+      at = side(ray, px, py);
+      continue;
+    }
+    const std::size_t next = ray + 1 == ray_count_ ? 0 : ray + 1;
+    const double at_next = side(next, px, py);
+    if (at_next < 0.0) {
+      low = at;
+      high = at_next;
+      return ray;
+    }
+    ray = next;
+    at = at_next;
+  }
+  return kUnknown;
+}
+
+[[gnu::always_inline]] inline std::size_t ScanRebinner::locate(double px, double py, std::size_t hint,
+                                                               double& low, double& high) const {
+  // Most points lie on or past the previous point's ray and before the one after next: two rays tried.
+  const std::size_t next = hint + 1 == ray_count_ ? 0 : hint + 1;
+  const double at_next = side(next, px, py);
+  if (at_next >= 0.0) {
+    const std::size_t after = next + 1 == ray_count_ ? 0 : next + 1;
+    const double at_after = side(after, px, py);
+    if (at_after < 0.0) {
+      low = at_next;
+      high = at_after;
+      return next;
+    }
+  } else {
+    const double at = side(hint, px, py);
+    if (at >= 0.0) {
+      low = at;
+      high = at_next;
+      return hint;
+    }
+  }
+  return locateFar(px, py, hint, low, high);
+}
+
+std::size_t ScanRebinner::locateFar(double px, double py, std::size_t hint, double& low, double& high) const {
+  std::size_t found = walk(hint, px, py, low, high);
+  if (found != kUnknown)
+    return found;
+  // Far from the hint: start again from the point's bearing (within a ray of its position).
+  const double offset =
+      wrapToTurn(direction_ * (fastAtan2(py, px) - static_cast<double>(rays_grid_.angle_min)));
+  const double ray = std::floor(offset / std::abs(static_cast<double>(rays_grid_.angle_increment)));
+  found = walk(std::min(static_cast<std::size_t>(std::max(ray, 0.0)), ray_count_ - 1), px, py, low, high);
+  if (found != kUnknown)
+    return found;
+  for (std::size_t candidate = 0; candidate < ray_count_; ++candidate) {  // never needed so far
+    const double at = side(candidate, px, py);
+    const double after = side(candidate + 1 == ray_count_ ? 0 : candidate + 1, px, py);
+    if (at >= 0.0 && after < 0.0) {
+      low = at;
+      high = after;
+      return candidate;
+    }
+  }
+  return kUnknown;
+}
+
+void ScanRebinner::crossCorner(std::size_t j, std::size_t q, float j_intensity, float q_intensity,
+                               const BinSweep& sweep) {
+  const double cx = corner_x_[j], cy = corner_y_[j];
+  if (running_ && x_[j] * cx + y_[j] * cy > 0.0 && cx * x_[q] + cy * y_[q] > 0.0 &&
+      position_[j] != kUnknown && position_[q] != kUnknown) {
+    double low = 0.0, high = 0.0;
+    const std::size_t corner = locate(cx, cy, position_[j], low, high);
+    if (corner != kUnknown) {
+      crossRays(x_[j], y_[j], position_[j], side_low_[j], side_high_[j], j_intensity, cx, cy, corner, low,
+                high, j_intensity);
+      crossRays(cx, cy, corner, low, high, q_intensity, x_[q], y_[q], position_[q], side_low_[q],
+                side_high_[q], q_intensity);
+      return;
+    }
+  }
+  const double corner_bearing = fastAtan2(cy, cx);
+  crossSegmentByBearing(x_[j], y_[j], bearingOf(j), j_intensity, cx, cy, corner_bearing, j_intensity, sweep);
+  crossSegmentByBearing(cx, cy, corner_bearing, q_intensity, x_[q], y_[q], bearingOf(q), q_intensity, sweep);
+}
+
+[[gnu::always_inline]] inline void ScanRebinner::crossRays(double ax, double ay, std::size_t a_ray,
+                                                           double a_low, double a_high, float a_intensity,
+                                                           double bx, double by, std::size_t b_ray,
+                                                           double b_low, double b_high, float b_intensity) {
+  const double ex = bx - ax, ey = by - ay;
+  const double numerator = cross(ax, ay, ex, ey);
+  const std::size_t bin_count = best_range_.size();
+  const double* const ray_cos = ray_cos_.data();
+  const double* const ray_sin = ray_sin_.data();
+  double* const best_range = best_range_.data();
+  const bool with_intensities = with_intensities_;
+  // The crossing of one ray, tested as crossSegmentByBearing tests it; u (= along / denominator) plainly
+  // within [0, 1] needs no division, plainly outside it (by twice the vertex tolerance) is rejected.
+  const auto crossRay = [&](std::size_t ray) {
+    if (ray >= bin_count)
+      return;  // past the grid's last bin
+    const double ray_x = ray_cos[ray], ray_y = ray_sin[ray];
+    const double denominator = cross(ray_x, ray_y, ex, ey);
+    if (denominator == 0.0)
+      return;
+    const double along = cross(ax, ay, ray_x, ray_y);
+    const double magnitude = std::abs(denominator), signed_along = denominator < 0.0 ? -along : along;
+    if (!(signed_along >= 0.0 && signed_along <= magnitude)) {
+      if (signed_along < -2.0 * kVertexTolerance * magnitude ||
+          signed_along > (1.0 + 2.0 * kVertexTolerance) * magnitude) {
+        return;
+      }
+      const double u = along / denominator;
+      if (u < -kVertexTolerance || u > 1.0 + kVertexTolerance)
+        return;
+    }
+    const double range = numerator / denominator;
+    if (range <= 0.0 || !(range < best_range[ray]))
+      return;
+    best_range[ray] = range;
+    if (with_intensities) {
+      const double u = along / denominator;
+      best_intensity_[ray] = static_cast<float>((1.0 - u) * a_intensity + u * b_intensity);
+    }
+  };
+  // Rays strictly between the two positions cross the segment; the ray at or before the earlier point and
+  // the one after the later point only when that point lies (almost) on it: within the vertex tolerance
+  // of |e| (|cross(ray, point)| is the point's distance from the ray).
+  const double near_ray = 2.0 * kVertexTolerance * (std::abs(ex) + std::abs(ey));
+  std::size_t forward = b_ray >= a_ray ? b_ray - a_ray : b_ray + ray_count_ - a_ray;
+  std::size_t first = a_ray;
+  bool test_first = a_low <= near_ray, test_last = -b_high <= near_ray;
+  if (forward == 0) {
+    test_first = test_first || b_low <= near_ray;
+    test_last = test_last || -a_high <= near_ray;
+  } else if (forward > ray_count_ / 2) {  // b before a in the grid's direction
+    forward = ray_count_ - forward;
+    first = b_ray;
+    test_first = b_low <= near_ray;
+    test_last = -a_high <= near_ray;
+  }
+  // One loop over them all, so the crossing test is inlined once.
+  std::size_t ray = first;
+  if (!test_first)
+    ray = ray + 1 == ray_count_ ? 0 : ray + 1;
+  const std::size_t count = forward + (test_first ? 1 : 0) + (test_last ? 1 : 0);
+  for (std::size_t k = 0; k < count; ++k) {
+    crossRay(ray);
+    ray = ray + 1 == ray_count_ ? 0 : ray + 1;
+  }
+}
+
+void ScanRebinner::crossSegmentByBearing(double ax, double ay, double a_bearing, float a_intensity, double bx,
+                                         double by, double b_bearing, float b_intensity,
+                                         const BinSweep& sweep) {
   const double delta = wrapDelta(b_bearing - a_bearing);
   if (std::abs(delta) >= M_PI - 1e-6)
     return;  // passes through the sensor: not a visible surface
@@ -512,7 +853,8 @@ void ScanRebinner::extendLine(const Points& points, std::size_t p, double dx, do
 void ScanRebinner::offer(std::size_t bin, double range, float intensity) {
   if (range < best_range_[bin]) {
     best_range_[bin] = range;
-    best_intensity_[bin] = intensity;
+    if (with_intensities_)
+      best_intensity_[bin] = intensity;
   }
 }
 
