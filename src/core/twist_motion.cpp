@@ -33,6 +33,9 @@ constexpr double kMinKnotSpacing = 5e-4;
 /// the 5 rad/s smooth drive at 40 Hz), and a parabola's slope through noise that small costs far less
 /// than it gains. Odometry with 10 % noise per step is followed.
 constexpr double kNoiseShare = 0.01;
+/// fitInterval(): a parabola's slope is trusted where the fourth (or third) difference of five (four)
+/// consecutive intervals' means is within this share of the sum of their changes.
+constexpr double kSmoothness = 0.4;
 /// Standard normal quantile of the line test (one-sided 99.9 %).
 constexpr double kTestQuantile = 3.09;
 
@@ -372,27 +375,59 @@ void TwistMotion::fitInterval(std::size_t j, int c, double& mean, double& slope)
         return;
     }
   }
-  // The twist curves here beyond the noise: the interval's own mean, changing at the slope of the
-  // parabola whose means over it and two neighbouring intervals are theirs (the three intervals that
-  // curve least: a step or kink at a sample beside the interval leaves the parabola on its other side
-  // smooth). A smooth twist is then followed to O(h^2) and the pose to O(h^3) between the samples,
-  // which stay exact.
+  // The twist curves here beyond the noise: the interval's own mean, changing at the slope of a
+  // parabola through it and two neighbouring intervals. A smooth twist is then followed to O(h^2) and
+  // the pose to O(h^3) between the samples, which stay exact.
+  // The parabola whose means over intervals lo, lo+1, lo+2 are theirs: q(x) = a + b x + q x^2 about
+  // interval j's centre, whose mean over interval k (centre x_k, length h_k) is
+  // a + b x_k + q (x_k^2 + h_k^2 / 12). Returns (b, q).
+  const auto parabola = [&](std::size_t lo) {
+    Eigen::Matrix3d averages;
+    Eigen::Vector3d values;
+    for (int r = 0; r < 3; ++r) {
+      const std::size_t k = lo + static_cast<std::size_t>(r);
+      averages.row(r) << 1.0, x(k), x(k) * x(k) + durations_[k] * durations_[k] / 12.0;
+      values[r] = y(k);
+    }
+    const Eigen::Vector3d solution = averages.partialPivLu().solve(values);
+    return Eigen::Vector2d(solution[1], solution[2]);
+  };
+  // The parabola's slope is trusted only where the twist is smooth around the interval: over five
+  // consecutive intervals holding it (centred where the samples allow), the fourth difference of their
+  // means within 0.4 of the sum of the changes between them. A smooth twist leaves about (omega h)^3 / 4
+  // of them (a fiftieth at 10 Hz on the smooth drives' 1.3 s turn); a step leaves at least one, a turn
+  // rate flipping every other sample one, a kink a half. Four intervals: the third difference, the same
+  // way. Else the slope is 0 (the twist stepped or kinked at a sample; the parabola would carry it).
+  if (count < 3)
+    return;  // no parabola: the interval's own twist
+  const std::size_t span = std::min<std::size_t>(count, 5);
+  if (span >= 4) {  // fewer (the first sweeps of a recording): no evidence either way, the parabola
+    const std::size_t lo_span = std::min(j >= 2 ? j - 2 : 0, count - span);
+    double difference = 0.0, changes = 0.0;
+    const double binomial[2][5] = {{1.0, -3.0, 3.0, -1.0, 0.0}, {1.0, -4.0, 6.0, -4.0, 1.0}};
+    for (std::size_t r = 0; r < span; ++r) {
+      difference += binomial[span - 4][r] * y(lo_span + r);
+      if (r > 0)
+        changes += std::abs(y(lo_span + r) - y(lo_span + r - 1));
+    }
+    if (std::abs(difference) > kSmoothness * changes)
+      return;
+  }
+  // At the ends of the samples (the sweep's last interval, whose next sample has not come) only the
+  // parabola on one side is there.
+  if (j == 0 || j + 1 == count) {
+    slope = parabola(j == 0 ? 0 : j - 2)[0];
+    return;
+  }
+  // Else the three intervals that curve least: a step or kink at a sample beside the interval leaves
+  // the parabola on its other side smooth.
   double least_curvature = INFINITY;
   for (std::size_t lo_k = j >= 2 ? j - 2 : 0; lo_k <= j && lo_k + 2 < count; ++lo_k) {
-    // q(x) = a + b x + q x^2 about the interval's centre; its mean over interval k (centre x_k, length
-    // h_k) is a + b x_k + q (x_k^2 + h_k^2 / 12).
-    Eigen::Matrix3d averages;
-    Eigen::Vector3d means;
-    for (int r = 0; r < 3; ++r) {
-      const std::size_t k = lo_k + static_cast<std::size_t>(r);
-      averages.row(r) << 1.0, x(k), x(k) * x(k) + durations_[k] * durations_[k] / 12.0;
-      means[r] = y(k);
-    }
-    const Eigen::Vector3d parabola = averages.partialPivLu().solve(means);
+    const Eigen::Vector2d fitted = parabola(lo_k);
     // Ties (a parabola: equal curvatures) go to the centred stencil, which comes second.
-    if (std::abs(parabola[2]) < least_curvature * (lo_k + 1 == j ? 1.0 + 1e-9 : 1.0)) {
-      least_curvature = std::abs(parabola[2]);
-      slope = parabola[1];
+    if (std::abs(fitted[1]) < least_curvature * (lo_k + 1 == j ? 1.0 + 1e-9 : 1.0)) {
+      least_curvature = std::abs(fitted[1]);
+      slope = fitted[0];
     }
   }
 }

@@ -38,7 +38,8 @@ Twist se3Bracket(const Twist& a, const Twist& b);
 ///   them; at none across a step at a sample between two constant stretches; else at the slope of the
 ///   parabola whose means over it and two neighbouring intervals are theirs, of the three such the
 ///   one that curves least (a smooth twist changing between samples: followed to O(h^2), the pose to
-///   O(h^3); a step or kink beside it: the parabola on its other side).
+///   O(h^3); a step or kink beside it: the parabola on its other side), where five intervals around it
+///   are smooth (their means' fourth difference within 0.4 of their changes; else no slope).
 /// - With noisy samples each interval's twist is constant (an arc through both samples): smoothing
 ///   them needs samples after the sweep, and those before it alone leave a line through a curving
 ///   twist biased the same way over the whole sweep, worse than following the samples.
