@@ -176,10 +176,11 @@ $smooth_rows
 Odometry integrated in 20 ms steps, each step's increment (x, y, yaw) multiplied by 1 + R·n, n ~ N(0, 1)
 per step and component (\`deskew_simulate --odom-noise R\`: a random walk, as encoder quantisation and
 slip give), tf and /odom at 50 Hz, range noise on. "floor" is the same scans with perfect odometry
-(twist), what range noise alone leaves. Twist follows noisy samples (each interval an arc through
-its two samples), so it is about linear here: smoothing them needs the samples after the sweep, which
-a scan corrected as soon as tf covers it does not have, and with those before it alone a line through
-a curving twist did worse than following (DESIGN.md §5).
+(twist), what range noise alone leaves. Twist reads tf only up to the sample closing the sweep (a
+scan is corrected as soon as tf covers it); a noisy component follows one line through the sweep's
+intervals and as many before where its residuals stay below 0.7 of the estimated noise's variance,
+else the samples (DESIGN.md §5). Before issue 24 these rows were scored with centred windows of
+0.6 s that read 0.3 s of tf after each sweep, which neither the node nor deskew_bag had.
 
 | scenario | odometry noise R | seed | floor | cloud, linear | cloud, twist | laser_geometry | scan, linear | scan, twist |
 | --- | ---: | ---: | --- | --- | --- | --- | --- | --- |

@@ -285,7 +285,7 @@ std::vector<std::string> DeskewParams::unknownNames(const std::vector<std::strin
     if (std::find(known.begin(), known.end(), name) != known.end())
       continue;
     if (name == "smoothing_window") {  // removed (CHANGELOG, Forthcoming)
-      unknown.push_back(name + " (no longer used: noisy odometry is followed between its samples)");
+      unknown.push_back(name + " (no longer used: noisy odometry is averaged over the sweep only)");
       continue;
     }
     const std::string closest = closestName(name, known);

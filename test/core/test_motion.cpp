@@ -372,13 +372,14 @@ void noisySweepErrors(TwistAt twist_at, unsigned seed, double& rms_twist, double
   rms_linear = std::sqrt(sum_linear / count);
 }
 
-// Noisy odometry is followed: each interval an arc through its two samples, never worse than tf's line
-// through them, on an arc (1.5 m/s, 2 rad/s) and on a drive whose speed and turn rate change all the
-// time (the smooth drives' cosines at their high speeds). Smoothing over a window was worse there: with
-// the samples before the sweep only (SweepsMotionDoesNotDependOnTheTfAfterIt), a line through a curving
-// twist is biased the same way over the whole sweep, where the samples' own noise averages out
-// (LDS-01/high/smooth at 10 % noise: 28.8 mm against tf's line's 24.0).
-TEST(TwistMotion, FollowsNoisyOdometryNeverWorseThanTfsLine) {
+// Noisy odometry: where one line explains the means of the sweep's intervals and as many before within
+// the estimated noise (strictly: residuals below 0.7 of its variance), the sweep follows that line, else
+// the samples. On an arc (1.5 m/s, 2 rad/s) that averages the noise out; on a drive whose speed and turn
+// rate change all the time (the smooth drives' cosines at their high speeds) a line through the
+// curving twist is biased the same way over the whole sweep, so it must stay close to following the
+// samples (within 5 %), from the samples up to the sweep's end only (SweepsMotionDoesNotDependOnTheTfAfterIt).
+TEST(TwistMotion, NoisyOdometryAveragedWhereALineExplainsTheSweep) {
+  double arc_sum = 0.0, arc_linear_sum = 0.0;
   for (const unsigned seed : {7u, 8u, 9u}) {
     double arc_twist, arc_linear, smooth_twist, smooth_linear;
     noisySweepErrors([](double) { return (Twist() << 1.5, 0.0, 0.0, 0.0, 0.0, 2.0).finished(); }, seed,
@@ -392,11 +393,12 @@ TEST(TwistMotion, FollowsNoisyOdometryNeverWorseThanTfsLine) {
     std::printf("noisy odometry (seed %u), 3 m ahead: arc twist %.2f mm, linear %.2f; smooth drive twist %.2f, "
                 "linear %.2f mm RMS\n",
                 seed, 1e3 * arc_twist, 1e3 * arc_linear, 1e3 * smooth_twist, 1e3 * smooth_linear);
-    // Arcs and chords through the same noisy samples differ by far less than the noise: within 1 %.
-    EXPECT_LT(arc_twist, 1.01 * arc_linear) << seed;
-    EXPECT_LT(smooth_twist, 1.01 * smooth_linear) << seed;
-    EXPECT_GT(smooth_twist, 0.9 * smooth_linear) << seed;  // the noise itself is not removed
+    EXPECT_LT(arc_twist, 1.05 * arc_linear) << seed;        // measured 0.86-1.02
+    EXPECT_LT(smooth_twist, 1.05 * smooth_linear) << seed;  // measured 1.00-1.04
+    arc_sum += arc_twist;
+    arc_linear_sum += arc_linear;
   }
+  EXPECT_LT(arc_sum, 0.95 * arc_linear_sum);  // measured 0.92
 }
 
 // A sweep is corrected as soon as tf covers it, live and offline, and tf after that arrives in whatever

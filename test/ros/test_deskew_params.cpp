@@ -137,8 +137,8 @@ TEST(Params, UnknownNamesAreNamedWithTheClosestParameter) {
   EXPECT_EQ(DeskewParams::unknownNames({"tf_timout", "tf_timeout", "colour", "stampat", "smoothing_window"}),
             (std::vector<std::string>{"tf_timout (did you mean tf_timeout?)", "colour",
                                       "stampat (did you mean stamp_at?)",
-                                      "smoothing_window (no longer used: noisy odometry is followed between "
-                                      "its samples)"}));
+                                      "smoothing_window (no longer used: noisy odometry is averaged over the "
+                                      "sweep only)"}));
 }
 
 // The live-only parameters are the ones deskew_bag refuses.

@@ -40,9 +40,9 @@ Twist se3Bracket(const Twist& a, const Twist& b);
 ///   one that curves least (a smooth twist changing between samples: followed to O(h^2), the pose to
 ///   O(h^3); a step or kink beside it: the parabola on its other side), where five intervals around it
 ///   are smooth (their means' fourth difference within 0.4 of their changes; else no slope).
-/// - With noisy samples each interval's twist is constant (an arc through both samples): smoothing
-///   them needs samples after the sweep, and those before it alone leave a line through a curving
-///   twist biased the same way over the whole sweep, worse than following the samples.
+/// - With noisy samples (noise above 1 % of the component's typical size): one line through the means
+///   of the sweep's intervals and as many before, where its residuals stay below 0.7 of the noise's
+///   variance (fitNoisySweep); else each interval's twist constant (an arc through both samples).
 /// - Over an interval the fitted twist is integrated to second order (two Magnus terms) such that its
 ///   end lies where the interval's mean twist takes it.
 ///
@@ -104,6 +104,14 @@ class TwistMotion final : public MotionSource {
   void estimateNoise();
   /// Fitted (mean twist, slope) of interval j, component c.
   void fitInterval(std::size_t j, int c, double& mean, double& slope) const;
+  /// For each noisy component: the line through the means of the sweep's intervals [first, last) and as
+  /// many before, if it explains them within the noise (sweep_line_).
+  void fitNoisySweep(std::size_t first, std::size_t last);
+  struct SweepLine {
+    bool valid = false;
+    double centre = 0.0, value = 0.0, slope = 0.0;  // value at centre [s from the first sample]
+  };
+  std::array<SweepLine, 6> sweep_line_{};
 
   const MotionSource* raw_ = nullptr;
   std::vector<Sample> samples_;
