@@ -338,14 +338,14 @@ void TwistMotion::fitInterval(std::size_t j, int c, double& mean, double& slope)
   const double variance = floor_[c] * floor_[c];
   const auto x = [&](std::size_t k) { return centres_[k] - centres_[j]; };
   const auto y = [&](std::size_t k) { return means_[k][c]; };
-  // The interval keeps its own mean, so that the fitted motion passes through every sample (means off
-  // by up to the floor would add up along the sweep's pieces); only the slope is fitted.
+  // Exact samples: the interval keeps its own mean, so that the fitted motion passes through every
+  // sample (means off by up to the floor would add up along the sweep's pieces); only the slope is
+  // fitted.
   mean = y(j);
   slope = 0.0;
-  // Noisy samples are followed: their twist constant over each interval (tf's own accuracy, as an arc).
-  // Fitting them over a window smooths only with samples after the sweep, which a sweep corrected as
-  // soon as tf covers it does not have (SweepsMotionDoesNotDependOnTheTfAfterIt); before it alone, a
-  // line through a curving twist is biased the same way over the whole sweep.
+  // Noisy samples: the sweep's line where one explains them (fitNoisySweep), else followed, the twist
+  // constant over each interval (an arc through both samples). Only samples up to the sweep's end are
+  // read (SweepsMotionDoesNotDependOnTheTfAfterIt).
   if (noisy_[static_cast<std::size_t>(c)]) {
     const SweepLine& line = sweep_line_[static_cast<std::size_t>(c)];
     if (line.valid) {
