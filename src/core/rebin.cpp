@@ -649,11 +649,11 @@ bool ScanRebinner::findCorner(std::size_t a0, std::size_t a, std::size_t b, std:
   double at = side(ray, px, py);
   for (int step = 0; step < kMaxWalk; ++step) {
     if (at < 0.0) {  // before this ray: one back
-      ray = ray == 0 ? ray_count_ - 1 : ray - 1;
+      ray = previousRay(ray);
       at = side(ray, px, py);
       continue;
     }
-    const std::size_t next = ray + 1 == ray_count_ ? 0 : ray + 1;
+    const std::size_t next = nextRay(ray);
     const double at_next = side(next, px, py);
     if (at_next < 0.0) {
       low = at;
@@ -669,10 +669,10 @@ bool ScanRebinner::findCorner(std::size_t a0, std::size_t a, std::size_t b, std:
 [[gnu::always_inline]] inline std::size_t ScanRebinner::locate(double px, double py, std::size_t hint,
                                                                double& low, double& high) const {
   // Most points lie on or past the previous point's ray and before the one after next: two rays tried.
-  const std::size_t next = hint + 1 == ray_count_ ? 0 : hint + 1;
+  const std::size_t next = nextRay(hint);
   const double at_next = side(next, px, py);
   if (at_next >= 0.0) {
-    const std::size_t after = next + 1 == ray_count_ ? 0 : next + 1;
+    const std::size_t after = nextRay(next);
     const double at_after = side(after, px, py);
     if (at_after < 0.0) {
       low = at_next;
@@ -703,7 +703,7 @@ std::size_t ScanRebinner::locateFar(double px, double py, std::size_t hint, doub
     return found;
   for (std::size_t candidate = 0; candidate < ray_count_; ++candidate) {  // never needed so far
     const double at = side(candidate, px, py);
-    const double after = side(candidate + 1 == ray_count_ ? 0 : candidate + 1, px, py);
+    const double after = side(nextRay(candidate), px, py);
     if (at >= 0.0 && after < 0.0) {
       low = at;
       high = after;
@@ -792,11 +792,11 @@ void ScanRebinner::crossCorner(std::size_t j, std::size_t q, float j_intensity, 
   // One loop over them all, so the crossing test is inlined once.
   std::size_t ray = first;
   if (!test_first)
-    ray = ray + 1 == ray_count_ ? 0 : ray + 1;
+    ray = nextRay(ray);
   const std::size_t count = forward + (test_first ? 1 : 0) + (test_last ? 1 : 0);
   for (std::size_t k = 0; k < count; ++k) {
     crossRay(ray);
-    ray = ray + 1 == ray_count_ ? 0 : ray + 1;
+    ray = nextRay(ray);
   }
 }
 

@@ -1,11 +1,14 @@
 // Test support: the re-binner as it was before the one-pass rewrite (issue 25), frozen (see
-// reference_rebin.h). A copy of src/core/rebin.cpp and of fastAtan2 at that commit.
+// reference_rebin.h). A copy of src/core/rebin.cpp at that commit;
+// fastAtan2 is the core's own (src/core/fast_atan2.h, which issue 25 did not change).
 #include "support/reference_rebin.h"
 
 #include <algorithm>
 #include <cmath>
 #include <limits>
 #include <string>
+
+#include "../../src/core/fast_atan2.h"
 
 namespace lidar_deskew::test {
 using core::AngleGrid;
@@ -16,32 +19,8 @@ using core::RebinnedScan;
 
 namespace {
 
-/// [rad] largest error of fastAtan2 (with margin).
-constexpr double kFastAtan2Error = 5e-8;
-
-/// atan2(y, x) [rad] in [-pi, pi] to within kFastAtan2Error, a few times cheaper than libm's (which took a
-/// fifth of the consistency measure's time and most of the re-binning's): an odd polynomial for atan on
-/// [0, 1] (least-squares fitted on Chebyshev nodes, error 4.1e-8 rad) and the octant's symmetries.
-inline double fastAtan2(double y, double x) {
-  const double ax = std::abs(x), ay = std::abs(y);
-  const double high = std::max(ax, ay);
-  if (high == 0.0)
-    return 0.0;
-  const double a = std::min(ax, ay) / high;
-  const double s = a * a;
-  double r = a * (0.99999943684314718 +
-                  s * (-0.33330106677687926 +
-                       s * (0.19948508985754437 +
-                            s * (-0.1391580226062557 +
-                                 s * (0.096562564702695933 +
-                                      s * (-0.056063176726315958 +
-                                           s * (0.02194661103058218 + s * -0.0040733094638858158)))))));
-  if (ay > ax)
-    r = M_PI_2 - r;
-  if (x < 0.0)
-    r = M_PI - r;
-  return y < 0.0 ? -r : r;
-}
+using core::detail::fastAtan2;
+using core::detail::kFastAtan2Error;
 
 constexpr double kTwoPi = 2.0 * M_PI;
 /// Tolerance on the segment parameter of a crossing: a ray through a contour's vertex meets it.

@@ -138,6 +138,9 @@ class ScanRebinner {
                          double& corner_y) const;
   /// [m] how far the point (px, py) lies past ray `ray` in the grid's direction (negative: before it).
   inline double side(std::size_t ray, double px, double py) const;
+  /// The ray after `ray` and the one before it, the rays taken round (the last ray's next is the first).
+  std::size_t nextRay(std::size_t ray) const { return ray + 1 == ray_count_ ? 0 : ray + 1; }
+  std::size_t previousRay(std::size_t ray) const { return ray == 0 ? ray_count_ - 1 : ray - 1; }
   /// The running bin position of (px, py): the ray it lies on or past whose next ray it lies before,
   /// walking from `ray`, with side() of both (`low` >= 0, `high` < 0); kUnknown when not within
   /// kMaxWalk rays of it.
