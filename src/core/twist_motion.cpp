@@ -198,10 +198,8 @@ bool TwistMotion::gatherSamples(const MotionSource& raw, TimeNs begin, TimeNs en
     cache_.clear();
   cache_begin_ = begin;
   cache_source_ = &raw;
-  // samples_[i] is the answer at times_[i]. The queries walk outwards from the sweep's first sample, so
-  // one iterator walks the cache along (`at`: the first cached sample at or after the time asked) rather
-  // than a search per sample.
-  samples_.resize(times_.size());
+  // The queries walk outwards from the sweep's first sample, so one iterator walks the cache along
+  // (`at`: the first cached sample at or after the time asked) rather than a search per sample.
   auto at = cachedAt(times_[first]);
   const auto seek = [&](TimeNs time) {
     while (at != cache_.begin() && std::prev(at)->time >= time)
@@ -219,14 +217,12 @@ bool TwistMotion::gatherSamples(const MotionSource& raw, TimeNs begin, TimeNs en
       } catch (const MotionUnavailable&) {
         return false;
       }
-      at =
-          cache_.insert(at, {time, detail::rotationOf(pose), detail::translationOf(pose), Twist::Zero(), -1});
+      at = cache_.insert(at, {time, detail::rotationOf(pose), detail::translationOf(pose), Twist::Zero(), -1});
     }
-    samples_[i] = *at;
     return true;
   };
   // From the sweep's first sample outwards, stopping where the source no longer answers (a chain's
-  // links end at different times): samples_[low, high) are answered.
+  // links end at different times): times_[low, high) are answered.
   std::size_t low = first + 1;
   while (low > 0) {
     if (!query(low - 1)) {
@@ -236,9 +232,6 @@ bool TwistMotion::gatherSamples(const MotionSource& raw, TimeNs begin, TimeNs en
     }
     --low;
   }
-  // Where the oldest sample is kept; the forward walk inserts after it only.
-  seek(times_[low]);
-  const auto oldest = at - cache_.begin();
   std::size_t high = first + 1;
   while (high < times_.size()) {
     if (!query(high)) {
@@ -248,10 +241,16 @@ bool TwistMotion::gatherSamples(const MotionSource& raw, TimeNs begin, TimeNs en
     }
     ++high;
   }
-  samples_.erase(samples_.begin() + static_cast<std::ptrdiff_t>(high), samples_.end());
-  samples_.erase(samples_.begin(), samples_.begin() + static_cast<std::ptrdiff_t>(low));
-  // Forget what no later sweep's window reaches.
-  cache_.erase(cache_.begin(), cache_.begin() + oldest);
+  // Forget what no later sweep's window reaches, then point at the window's samples in the cache (no
+  // more insertions until the next prepare(): the pointers stay valid).
+  cache_.erase(cache_.begin(), cachedAt(times_[low]));
+  samples_.clear();
+  auto cached = cache_.begin();
+  for (std::size_t i = low; i < high; ++i) {
+    while (cached->time < times_[i])
+      ++cached;
+    samples_.push_back(&*cached);
+  }
   return samples_.size() >= 2;
 }
 
@@ -273,48 +272,75 @@ void TwistMotion::estimateNoise() {
   // step_[k]: |m_k+1 - m_k| / sqrt(2); chord_[k]: m_k from the line through k-1 and k+1; curve_[i]: m_i+5
   // from the quartic through i..i+4 (Lagrange extrapolation: a smooth curve's twist, rough ground at
   // 2-3 Hz, is explained by it to 0.2 % of its amplitude at 50 Hz).
-  // Only the stencils around the intervals j in [5, count - 6] scored below are computed.
-  step_.resize(count);
-  chord_.resize(count);
-  curve_.resize(count);
-  for (std::size_t k = 4; k + 6 <= count; ++k)
-    step_[k] = (means_[k + 1] - means_[k]).cwiseAbs() / std::sqrt(2.0);
-  for (std::size_t k = 4; k + 5 <= count; ++k) {
-    const double w_before = (centres_[k + 1] - centres_[k]) / (centres_[k + 1] - centres_[k - 1]);
-    const double w_after = 1.0 - w_before;
-    chord_[k] = (means_[k] - w_before * means_[k - 1] - w_after * means_[k + 1]).cwiseAbs() /
-                std::sqrt(1.0 + w_before * w_before + w_after * w_after);
-  }
-  for (std::size_t i = 0; i + 5 < count; ++i) {
-    // Point a's weight is the product over b != a of (centre_5 - centre_b) / (centre_a - centre_b), in
-    // increasing b (the order fixes its rounding). The twenty quotients do not depend on each other:
-    // divided as one array, two at a time.
-    const double* centre = &centres_[i];
-    Eigen::Array<double, 20, 1> numerators, denominators;
-    for (int n = 0; n < 20; ++n) {
-      numerators[n] = centre[5] - centre[kQuarticOther[n]];
-      denominators[n] = centre[n / 4] - centre[kQuarticOther[n]];
+  // Interval j's smallest residual (j in [5, count - 6], the ones scored) reads the samples j-5 to j+6
+  // only, and only through their poses and the differences of their times, which are exact in integer
+  // nanoseconds: it does not depend on the window and is kept with sample j for later sweeps. Only the
+  // intervals from the first one not kept are computed (a new sweep: its own), and the stencils they read.
+  const auto keptFor = [&](std::size_t j) {
+    const Sample& kept = sample(j);
+    return kept.residual_from == sample(j - 5).time && kept.residual_to == sample(j + 6).time;
+  };
+  std::size_t fresh = 5;
+  while (fresh + 6 <= count && keptFor(fresh))
+    ++fresh;
+  if (fresh + 6 <= count) {
+    // Twice the intervals' mid times [ns]: their differences are exact.
+    doubled_centres_.resize(count);
+    for (std::size_t k = 0; k < count; ++k)
+      doubled_centres_[k] = sample(k).time + sample(k + 1).time;
+    const auto apart = [&](std::size_t a, std::size_t b) {
+      return static_cast<double>(doubled_centres_[a] - doubled_centres_[b]);
+    };
+    step_.resize(count);
+    chord_.resize(count);
+    curve_.resize(count);
+    for (std::size_t k = fresh - 1; k + 6 <= count; ++k)
+      step_[k] = (means_[k + 1] - means_[k]).cwiseAbs() / std::sqrt(2.0);
+    for (std::size_t k = fresh - 1; k + 5 <= count; ++k) {
+      const double w_before = apart(k + 1, k) / apart(k + 1, k - 1);
+      const double w_after = 1.0 - w_before;
+      chord_[k] = (means_[k] - w_before * means_[k - 1] - w_after * means_[k + 1]).cwiseAbs() /
+                  std::sqrt(1.0 + w_before * w_before + w_after * w_after);
     }
-    const Eigen::Array<double, 20, 1> quotients = numerators / denominators;
-    Twist prediction = Twist::Zero();
-    double variance = 1.0;
-    for (int a = 0; a < 5; ++a) {
-      const double weight =
-          quotients[4 * a] * quotients[4 * a + 1] * quotients[4 * a + 2] * quotients[4 * a + 3];
-      prediction += weight * means_[i + static_cast<std::size_t>(a)];
-      variance += weight * weight;
+    for (std::size_t i = fresh - 5; i + 5 < count; ++i) {
+      // Point a's weight is the product over b != a of (centre_5 - centre_b) / (centre_a - centre_b), in
+      // increasing b (the order fixes its rounding). The twenty quotients do not depend on each other:
+      // divided as one array, two at a time.
+      Eigen::Array<double, 20, 1> numerators, denominators;
+      for (int n = 0; n < 20; ++n) {
+        const std::size_t other = i + static_cast<std::size_t>(kQuarticOther[n]);
+        numerators[n] = apart(i + 5, other);
+        denominators[n] = apart(i + static_cast<std::size_t>(n / 4), other);
+      }
+      const Eigen::Array<double, 20, 1> quotients = numerators / denominators;
+      Twist prediction = Twist::Zero();
+      double variance = 1.0;
+      for (int a = 0; a < 5; ++a) {
+        const double weight =
+            quotients[4 * a] * quotients[4 * a + 1] * quotients[4 * a + 2] * quotients[4 * a + 3];
+        prediction += weight * means_[i + static_cast<std::size_t>(a)];
+        variance += weight * weight;
+      }
+      curve_[i] = (means_[i + 5] - prediction).cwiseAbs() / std::sqrt(variance);
     }
-    curve_[i] = (means_[i + 5] - prediction).cwiseAbs() / std::sqrt(variance);
+    // Each interval's smallest residual, all six components at once (cwiseMin is std::min, element by
+    // element).
+    for (std::size_t j = fresh; j + 6 <= count; ++j) {
+      Twist e =
+          step_[j - 1].cwiseMin(step_[j]).cwiseMin(chord_[j - 1]).cwiseMin(chord_[j]).cwiseMin(chord_[j + 1]);
+      for (std::size_t i = j - 5; i <= j; ++i)
+        e = e.cwiseMin(curve_[i]);
+      Sample& kept = sample(j);
+      kept.residual = e;
+      kept.residual_from = sample(j - 5).time;
+      kept.residual_to = sample(j + 6).time;
+    }
   }
-  // Each interval's smallest residual, all six components at once (cwiseMin is std::min, element by
-  // element), into one column of minima_ per component; the noise is each column's median.
+  // The noise is the median of each component's smallest residuals (a column of minima_ each).
   const std::size_t scored = count - 10;
   minima_.resize(6 * scored);
   for (std::size_t j = 5; j + 6 <= count; ++j) {
-    Twist e =
-        step_[j - 1].cwiseMin(step_[j]).cwiseMin(chord_[j - 1]).cwiseMin(chord_[j]).cwiseMin(chord_[j + 1]);
-    for (std::size_t i = j - 5; i <= j; ++i)
-      e = e.cwiseMin(curve_[i]);
+    const Twist& e = sample(j).residual;
     for (std::size_t c = 0; c < 6; ++c)
       minima_[c * scored + j - 5] = e[static_cast<int>(c)];
   }
@@ -326,6 +352,8 @@ void TwistMotion::estimateNoise() {
   // means' magnitudes). Below, what the simple models leave is taken for the motion's own curvature.
   magnitudes_.resize(count);
   for (std::size_t c = 0; c < 6; ++c) {
+    if (!(noise_[static_cast<int>(c)] > floor_[static_cast<int>(c)]))
+      continue;  // exact: its typical size is not needed
     for (std::size_t k = 0; k < count; ++k)
       magnitudes_[k] = std::abs(means_[k][static_cast<int>(c)]);
     const double typical_size = kthSmallest(magnitudes_.data(), count, count / 2, scratch_);
@@ -484,35 +512,27 @@ const MotionSource& TwistMotion::prepare(const MotionSource& raw, TimeNs begin, 
   means_.resize(intervals);
   durations_.resize(intervals);
   centres_.resize(intervals);
-  // The cache starts at samples_.front() and holds the others in order: one iterator walks it along.
-  auto cached = cache_.begin();
   for (std::size_t k = 0; k < intervals; ++k) {
-    const Sample& a = samples_[k];
-    const Sample& b = samples_[k + 1];
+    Sample& a = sample(k);
+    const Sample& b = sample(k + 1);
     durations_[k] = nsToSeconds(b.time - a.time);
-    centres_[k] = nsToSeconds(a.time - samples_.front().time) + 0.5 * durations_[k];
+    centres_[k] = nsToSeconds(a.time - sample(0).time) + 0.5 * durations_[k];
     if (a.mean_until != b.time) {  // not computed in an earlier sweep
       const Eigen::Matrix3d relative_rotation = a.rotation.transpose() * b.rotation;
       const Eigen::Vector3d relative_translation = a.rotation.transpose() * (b.translation - a.translation);
-      means_[k] = se3Log(relative_rotation, relative_translation) / durations_[k];
-      while (cached != cache_.end() && cached->time < a.time)
-        ++cached;
-      if (cached != cache_.end() && cached->time == a.time) {
-        cached->mean = means_[k];
-        cached->mean_until = b.time;
-      }
-    } else {
-      means_[k] = a.mean;
+      a.mean = se3Log(relative_rotation, relative_translation) / durations_[k];
+      a.mean_until = b.time;
     }
+    means_[k] = a.mean;
   }
   estimateNoise();
 
   // The intervals the span touches: from the last sample at or before begin to the first at or after end.
   std::size_t first = 0;
-  while (first + 1 < samples_.size() && samples_[first + 1].time <= begin)
+  while (first + 1 < samples_.size() && sample(first + 1).time <= begin)
     ++first;
   std::size_t last = first;
-  while (last + 1 < samples_.size() && samples_[last].time < end)
+  while (last + 1 < samples_.size() && sample(last).time < end)
     ++last;
   if (last == first) {  // a span of one instant on a sample: the interval after it, else before
     if (first + 1 < samples_.size())
@@ -522,12 +542,12 @@ const MotionSource& TwistMotion::prepare(const MotionSource& raw, TimeNs begin, 
   }
   fitNoisySweep(first, last);
 
-  Eigen::Matrix3d rotation = samples_[first].rotation;
-  Eigen::Vector3d translation = samples_[first].translation;
+  Eigen::Matrix3d rotation = sample(first).rotation;
+  Eigen::Vector3d translation = sample(first).translation;
   screws_ = true;
   for (std::size_t j = first; j < last; ++j) {
     Piece piece;
-    piece.time = samples_[j].time;
+    piece.time = sample(j).time;
     piece.duration = durations_[j];
     Twist mean, slope;
     const double h = piece.duration;
@@ -557,7 +577,7 @@ const MotionSource& TwistMotion::prepare(const MotionSource& raw, TimeNs begin, 
   }
   end_rotation_ = rotation;
   end_translation_ = translation;
-  end_time_ = samples_[last].time;
+  end_time_ = sample(last).time;
   return *this;
 }
 

@@ -456,6 +456,70 @@ TEST(TwistMotion, SweepsMotionDoesNotDependOnTheTfAfterIt) {
   }
 }
 
+// The fit keeps work across sweeps (each interval's mean twist and smallest noise residual, with the
+// samples they were computed from) and reads the samples' times only through their differences. So one
+// TwistMotion prepared sweep after sweep, as the node and deskew_bag use it, gives to the bit what a fresh
+// one gives for each sweep, and what a fresh one gives with every time shifted by an odd number of
+// nanoseconds (another epoch): poses and noise estimates. Exact and noisy samples, jittered spacing (as
+// tf from a real driver has), and a jump back in time (a bag played in a loop).
+TEST(TwistMotion, KeptWorkGivesTheFitAFreshOneGives) {
+  constexpr TimeNs kShift = 1'699'999'000'123'456'789;
+  std::mt19937 random(5);
+  std::normal_distribution<double> noise(0.0, 0.1);
+  std::uniform_int_distribution<TimeNs> jitter(-3'000'000, 3'000'000);
+  for (const bool noisy : {false, true}) {
+    PoseSamples samples, shifted;
+    CPose3D odometry;
+    TimeNs previous = 0;
+    for (int k = 0; k <= 400; ++k) {  // 8 s at about 50 Hz, speed and turn rate changing all the time
+      const TimeNs offset = k * kSecond / 50 + jitter(random);
+      const double h = k == 0 ? 0.02 : nsToSeconds(offset - previous);
+      const double t = nsToSeconds(offset) - 0.5 * h;  // the interval's middle
+      Twist step = Twist::Zero();
+      step[0] = h * 1.5 * std::cos(M_PI * t);
+      step[1] = h * 0.2 * std::sin(3.0 * t);
+      step[5] = h * 2.0 * std::sin(2.0 * M_PI * t / 1.3);
+      if (noisy) {
+        for (int c : {0, 1, 5})
+          step[c] *= 1.0 + noise(random);
+      }
+      odometry = twist::constantTwist(odometry, step, 1.0);
+      samples.add(kT0 + offset, odometry);
+      shifted.add(kShift + offset, odometry);
+      previous = offset;
+    }
+    TwistMotion kept;
+    int compared = 0;
+    // 40 sweeps of 0.1 s from 1.2 s on, then the first 10 again (time goes back).
+    for (int n = 0; n < 50; ++n) {
+      const TimeNs begin = 12 * kSecond / 10 + (n % 40) * kSecond / 10 + 1'234'567, end = begin + kSecond / 10;
+      TwistMotion fresh, fresh_shifted;
+      EXPECT_EQ(&kept.prepare(samples, kT0 + begin, kT0 + end), &kept);
+      fresh.prepare(samples, kT0 + begin, kT0 + end);
+      fresh_shifted.prepare(shifted, kShift + begin, kShift + end);
+      for (int c = 0; c < 6; ++c) {
+        EXPECT_EQ(kept.estimatedNoise()[c], fresh.estimatedNoise()[c]) << noisy << " " << n << " " << c;
+        EXPECT_EQ(fresh_shifted.estimatedNoise()[c], fresh.estimatedNoise()[c]) << noisy << " " << n << " " << c;
+      }
+      if (n == 30) {  // the branch meant is the one tested
+        EXPECT_EQ(fresh.estimatedNoise()[5] > 0.02, noisy) << fresh.estimatedNoise()[5];
+        EXPECT_EQ(fresh.estimatedNoise()[5] < 5e-5, !noisy);
+      }
+      for (TimeNs t = begin; t <= end; t += kSecond / 400) {
+        const CPose3D a = kept.basePose(kT0 + t), b = fresh.basePose(kT0 + t);
+        const CPose3D c = fresh_shifted.basePose(kShift + t);
+        for (const CPose3D* other : {&a, &c}) {
+          EXPECT_EQ(other->x(), b.x()) << noisy << " " << n << " " << t;
+          EXPECT_EQ(other->y(), b.y()) << noisy << " " << n << " " << t;
+          EXPECT_EQ(other->yaw(), b.yaw()) << noisy << " " << n << " " << t;
+        }
+        ++compared;
+      }
+    }
+    EXPECT_EQ(compared, 50 * 41);
+  }
+}
+
 TEST(TwistMotion, UsesASourceWithoutSamplesAsItIs) {
   PoseSamples samples;
   samples.add(kT0, CPose2D(0.0, 0.0, 0.0));

@@ -84,6 +84,10 @@ class TwistMotion final : public MotionSource {
     Eigen::Vector3d translation;
     Twist mean;  // of the interval to the sample at mean_until (-1: not computed yet)
     TimeNs mean_until;
+    /// estimateNoise()'s smallest residual of the interval starting here, per component; a function of
+    /// the samples from residual_from to residual_to (five intervals either side), kept with them.
+    Twist residual = Twist::Zero();
+    TimeNs residual_from = -1, residual_to = -1;
   };
   /// One fitted interval: starts at `time`, lasts `duration` [s]; the twist at t' [s] into it is
   /// start_twist + t' slope; pose there = start pose * Exp(Omega(t')).
@@ -100,6 +104,8 @@ class TwistMotion final : public MotionSource {
 
   /// The first cached sample at or after `time`.
   std::deque<Sample>::iterator cachedAt(TimeNs time);
+  /// The k-th sample of the window prepare() fits over (kept in cache_).
+  Sample& sample(std::size_t k) const { return *samples_[k]; }
   bool gatherSamples(const MotionSource& raw, TimeNs begin, TimeNs end);
   void estimateNoise();
   /// Fitted (mean twist, slope) of interval j, component c.
@@ -114,8 +120,8 @@ class TwistMotion final : public MotionSource {
   std::array<SweepLine, 6> sweep_line_{};
 
   const MotionSource* raw_ = nullptr;
-  std::vector<Sample> samples_;
-  std::deque<Sample> cache_;  // the source's answers at its sample times, sorted
+  std::vector<Sample*> samples_;  // the window's samples, in cache_ (stable until the next prepare())
+  std::deque<Sample> cache_;      // the source's answers at its sample times, sorted
   const MotionSource* cache_source_ = nullptr;
   TimeNs cache_begin_ = 0;
   std::vector<TimeNs> times_;      // scratch: sample times
@@ -135,6 +141,7 @@ class TwistMotion final : public MotionSource {
   std::vector<double> scratch_;  // estimateNoise()'s buffer for medians
   std::vector<double> minima_;   // estimateNoise()'s smallest residual per interval, a column per component
   std::vector<Twist> step_, chord_, curve_;  // estimateNoise()'s residuals per stencil
+  std::vector<TimeNs> doubled_centres_;       // estimateNoise()'s interval mid times [ns] times two
 };
 
 }  // namespace lidar_deskew::core
