@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <stdexcept>
 
 #include "pose_eigen.h"
 
@@ -169,6 +170,13 @@ void KnotTrajectory::build(TimeNs origin, double span_begin, double span_end, Ti
                                              (-s * local.x() + c * local.y()) / determinant, 0.0);
       segment.translation_step.setZero();
     }
+  }
+  affine_maps_ = false;
+  hint_ = 0;
+}
+
+void KnotTrajectory::prepareAffineMaps() {
+  for (Segment& segment : segments_) {
     const Eigen::Matrix3d cross = detail::skew(segment.axis);
     const Eigen::Matrix3d left_cross = segment.left_rotation * cross;
     const Eigen::Matrix3d left_cross2 = left_cross * cross;
@@ -179,7 +187,7 @@ void KnotTrajectory::build(TimeNs origin, double span_begin, double span_end, Ti
     segment.translation_sine = left_cross * (mount_translation_ + segment.screw_offset);
     segment.translation_versine = left_cross2 * (mount_translation_ + segment.screw_offset);
   }
-  hint_ = 0;
+  affine_maps_ = true;
 }
 
 std::size_t KnotTrajectory::segmentFor(double time_offset) const {
@@ -211,6 +219,8 @@ Eigen::Vector3d KnotTrajectory::apply(double time_offset, const Eigen::Vector3d&
 
 void KnotTrajectory::transformAt(double time_offset, Eigen::Matrix3d& rotation,
                                  Eigen::Vector3d& translation) const {
+  if (!affine_maps_)
+    throw std::logic_error("KnotTrajectory::transformAt before prepareAffineMaps()");
   const Segment& segment = segments_[segmentFor(time_offset)];
   const double fraction =
       std::clamp((time_offset - segment.begin_offset) * segment.inverse_duration, 0.0, 1.0);
@@ -527,6 +537,7 @@ TimeNs ScanDeskewer::correctFirings(const std::vector<Eigen::Vector3d>& points, 
   trajectory_.build(origin, earliest, latest, reference_time, source.knotInterval(config_.knot_interval),
                     mount, source);
   // The points of one firing share one affine map, built once.
+  trajectory_.prepareAffineMaps();
   firing_maps_.resize(count);
   for (std::size_t f = 0; f < count; ++f)
     trajectory_.transformAt(offsets[f], firing_maps_[f].rotation, firing_maps_[f].translation);

@@ -104,7 +104,11 @@ class KnotTrajectory {
 
   /// What apply() does at `time_offset`, as one affine map: apply(t, q) = rotation q + translation
   /// (to rounding). For the points of one firing time (a multi-line LIDAR's column) it is built once.
+  /// Needs prepareAffineMaps() after build().
   void transformAt(double time_offset, Eigen::Matrix3d& rotation, Eigen::Vector3d& translation) const;
+  /// Folds each knot segment's motion and the mount into the products transformAt() reads (the planar
+  /// path and apply() do not need them, so build() leaves them out).
+  void prepareAffineMaps();
 
   /// True when the mount and every knot's motion rotate about z only (a planar robot with an upright
   /// laser): then correctPlanarScan() applies.
@@ -156,6 +160,7 @@ class KnotTrajectory {
   Eigen::Matrix3d mount_rotation_;     // R_M, base <- laser
   Eigen::Vector3d mount_translation_;  // p_M [m]
   bool planar_ = false;
+  bool affine_maps_ = false;  // prepareAffineMaps() since build()
   mutable std::size_t hint_ = 0;
   std::vector<TimeNs> scratch_times_;
   std::vector<mrpt::poses::CPose3D> scratch_poses_;
