@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
 
 #include "fast_atan2.h"
@@ -182,6 +183,110 @@ constexpr double kSquaredMargin = 1e-9;
 
 }  // namespace
 
+/// The rays of the grid as running bin positions see them, copied into locals by the per-point loops (a
+/// store through a scratch array could alias a member, so members would be loaded again every point).
+struct ScanRebinner::Rays {
+  const double* side_cos;  // direction_ times each ray's direction: side() without a multiplication
+  const double* side_sin;
+  std::size_t count;  // ray_count_
+  double angle_min;   // [rad] of the grid
+  double abs_increment;
+  double direction;
+
+  /// [m] how far the point (px, py) lies past ray `ray` in the grid's direction (negative: before it):
+  /// direction * cross(ray, p) with the sign folded into the ray, the same value (at most -0 for +0,
+  /// which every use compares with 0 alike).
+  double side(std::size_t ray, double px, double py) const {
+    return cross(side_cos[ray], side_sin[ray], px, py);
+  }
+  /// The ray after `ray` and the one before it, the rays taken round (the last ray's next is the first).
+  std::size_t next(std::size_t ray) const { return ray + 1 == count ? 0 : ray + 1; }
+  std::size_t previous(std::size_t ray) const { return ray == 0 ? count - 1 : ray - 1; }
+
+  /// The running bin position of (px, py): the ray it lies on or past whose next ray it lies before,
+  /// walking from `ray`, with side() of both (`low` >= 0, `high` < 0); kUnknown when not within
+  /// kMaxWalk rays of it.
+  [[gnu::always_inline]] std::size_t walk(std::size_t ray, double px, double py, double& low,
+                                          double& high) const {
+    double at = side(ray, px, py);
+    for (int step = 0; step < kMaxWalk; ++step) {
+      if (at < 0.0) {  // before this ray: one back
+        ray = previous(ray);
+        at = side(ray, px, py);
+        continue;
+      }
+      const std::size_t after = next(ray);
+      const double at_after = side(after, px, py);
+      if (at_after < 0.0) {
+        low = at;
+        high = at_after;
+        return ray;
+      }
+      ray = after;
+      at = at_after;
+    }
+    return kUnknown;
+  }
+
+  /// As walk(), from `hint` (the ray at or after it, tried first) and, when too far from it, from the
+  /// point's bearing (locateFar, out of line).
+  [[gnu::always_inline]] std::size_t locate(double px, double py, std::size_t hint, double& low,
+                                            double& high) const {
+    // Most points lie on or past the previous point's ray and before the one after next: two rays tried.
+    const std::size_t after_hint = next(hint);
+    const double at_next = side(after_hint, px, py);
+    if (at_next >= 0.0) {
+      const std::size_t after = next(after_hint);
+      const double at_after = side(after, px, py);
+      if (at_after < 0.0) {
+        low = at_next;
+        high = at_after;
+        return after_hint;
+      }
+    } else {
+      const double at = side(hint, px, py);
+      if (at >= 0.0) {
+        low = at;
+        high = at_next;
+        return hint;
+      }
+    }
+    return locateFar(px, py, hint, low, high);
+  }
+
+  [[gnu::noinline]] std::size_t locateFar(double px, double py, std::size_t hint, double& low,
+                                          double& high) const {
+    std::size_t found = walk(hint, px, py, low, high);
+    if (found != kUnknown)
+      return found;
+    // Far from the hint: start again from the point's bearing (within a ray of its position).
+    const double offset = wrapToTurn(direction * (fastAtan2(py, px) - angle_min));
+    const double ray = std::floor(offset / abs_increment);
+    found = walk(std::min(static_cast<std::size_t>(std::max(ray, 0.0)), count - 1), px, py, low, high);
+    if (found != kUnknown)
+      return found;
+    for (std::size_t candidate = 0; candidate < count; ++candidate) {  // never needed so far
+      const double at = side(candidate, px, py);
+      const double after = side(next(candidate), px, py);
+      if (at >= 0.0 && after < 0.0) {
+        low = at;
+        high = after;
+        return candidate;
+      }
+    }
+    return kUnknown;
+  }
+};
+
+ScanRebinner::Rays ScanRebinner::rays() const {
+  return {side_cos_.data(),
+          side_sin_.data(),
+          ray_count_,
+          static_cast<double>(rays_grid_.angle_min),
+          std::abs(static_cast<double>(rays_grid_.angle_increment)),
+          direction_};
+}
+
 void ScanRebinner::updateRays(const AngleGrid& grid) {
   if (ray_cos_.size() == ray_count_ && rays_grid_.count == grid.count &&
       rays_grid_.angle_min == grid.angle_min && rays_grid_.angle_increment == grid.angle_increment &&
@@ -200,10 +305,14 @@ void ScanRebinner::updateRays(const AngleGrid& grid) {
   direction_ = grid.angle_increment < 0.0f ? -1.0 : 1.0;
   ray_cos_.resize(ray_count_);
   ray_sin_.resize(ray_count_);
+  side_cos_.resize(ray_count_);
+  side_sin_.resize(ray_count_);
   for (std::size_t b = 0; b < ray_count_; ++b) {
     const double angle = static_cast<double>(grid.angle_min) + static_cast<double>(b) * grid.angle_increment;
     ray_cos_[b] = std::cos(angle);
     ray_sin_[b] = std::sin(angle);
+    side_cos_[b] = direction_ * ray_cos_[b];
+    side_sin_[b] = direction_ * ray_sin_[b];
   }
   // Every bin starts with no crossing; writeNearestCrossings() leaves them so for the next scan.
   best_range_.assign(grid.count, kInfinity);
@@ -231,89 +340,83 @@ void ScanRebinner::rebin(const DeskewedScan& corrected, const AngleGrid& grid, f
 
 void ScanRebinner::readPoints(const Points& points, const BinSweep& sweep) {
   const std::size_t point_count = points.size();
-  x_.resize(point_count);
-  y_.resize(point_count);
-  next_.resize(point_count);
+  // Sizes only change with the scan's return count: no allocation and no fill per scan but for the two
+  // polar caches below.
+  point_.resize(point_count);
   joined_.resize(point_count);
-  cross2_.resize(point_count);
-  length2_.resize(point_count);
   candidates_.resize(point_count);
-  // Ranges and bearings only where a rule needs them (see rangeOf, bearingOf).
-  range_.assign(point_count, -1.0);
-  bearing_.assign(point_count, kInfinity);
-  position_.resize(point_count);
-  side_low_.resize(point_count);
-  side_high_.resize(point_count);
+  // Ranges and bearings only where a rule needs them (see rangeOf, bearingOf); 0 (all bits clear, one
+  // memset) marks "not yet".
+  range_.resize(point_count);
+  bearing_.resize(point_count);
+  if (point_count > 0) {
+    std::memset(range_.data(), 0, point_count * sizeof(double));
+    std::memset(bearing_.data(), 0, point_count * sizeof(double));
+  }
   // Plain pointers: stores through the char flags would otherwise reload every vector's data.
-  double* const x = x_.data();
-  double* const y = y_.data();
-  std::size_t* const next = next_.data();
+  PointState* const point = point_.data();
   char* const joined = joined_.data();
-  double* const cross2 = cross2_.data();
-  double* const length2 = length2_.data();
   std::uint32_t* const candidates = candidates_.data();
-  std::size_t* const position = position_.data();
-  double* const side_low = side_low_.data();
-  double* const side_high = side_high_.data();
   std::size_t candidate_count = 0;
   const double abs_increment = sweep.absIncrement();
   const double min_gap = config_.min_gap, gap_factor = config_.gap_factor;
   const auto isJoined = [&](std::size_t a, std::size_t b) {
-    const double dx = x[b] - x[a], dy = y[b] - y[a];
+    const double dx = point[b].x - point[a].x, dy = point[b].y - point[a].y;
     const double distance2 = dx * dx + dy * dy;
     // max(|x|, |y|) is never more than the range (as sqrt rounds it): a gap from it is never wider than
     // joinGap, so within it the points are joined without a square root.
-    const double low =
-        std::max(std::max(std::abs(x[a]), std::abs(y[a])), std::max(std::abs(x[b]), std::abs(y[b])));
+    const double low = std::max(std::max(std::abs(point[a].x), std::abs(point[a].y)),
+                                std::max(std::abs(point[b].x), std::abs(point[b].y)));
     const double low_limit = min_gap + gap_factor * low * abs_increment;
     if (distance2 <= low_limit * low_limit)
       return true;
     const double limit = joinGap(a, b, abs_increment);
     return distance2 <= limit * limit;
   };
-  // A point's distance from the line through its neighbours (p, next[j]) is |cross| / length; kept as
-  // cross^2 and length^2 (no square root, no division), exactly only for the noise sample and near the
+  // A point's distance from the line through its neighbours (p, point[j].next) is |cross| / length; kept as
+  // cross and length^2 (no square root, no division), exactly only for the noise sample and near the
   // tolerance (findFlatPoints). Points with both links joined estimate the noise (candidates).
   const auto measureResidual = [&](std::size_t j, std::size_t p) {
-    const std::size_t q = next[j];
-    length2[j] = 0.0;  // no neighbours' line: never flat
+    const std::size_t q = point[j].next;
+    point[j].length2 = 0.0;  // no neighbours' line: never flat
     if (p == kNoPoint || q == kNoPoint)
       return false;
-    const double ex = x[q] - x[p], ey = y[q] - y[p];
-    const double c = cross(ex, ey, x[j] - x[p], y[j] - y[p]);
-    length2[j] = ex * ex + ey * ey;
-    cross2[j] = c * c;
-    return length2[j] != 0.0 && joined[p] && joined[j];
+    const double ex = point[q].x - point[p].x, ey = point[q].y - point[p].y;
+    point[j].cross = cross(ex, ey, point[j].x - point[p].x, point[j].y - point[p].y);
+    point[j].length2 = ex * ex + ey * ey;
+    return point[j].length2 != 0.0 && joined[p] && joined[j];
   };
   const bool running = running_;
+  const Rays rays = this->rays();
   std::size_t hint = 0;
   // The two points before j, carried in registers (stores through the byte flags would reload them).
   double x1 = 0.0, y1 = 0.0, x0 = 0.0, y0 = 0.0;
   double low1 = 0.0;  // max(|x1|, |y1|)
   std::uint32_t beam1 = 0;
   bool linked0 = false, joined0 = false;  // the link from the point before j - 1 to j - 1
+  bool finite = true;                     // every point so far finite (checked once, after the loop)
   // One pass: point j read (and its running bin position found from the previous point's); the link
   // from point j - 1 to j; and point j - 1's distance from the line through its neighbours.
   for (std::size_t j = 0; j < point_count; ++j) {
     const double px = points[j].position.x(), py = points[j].position.y();
-    if (!std::isfinite(px) || !std::isfinite(py)) {
-      throw InvalidInput("points", "corrected point " + std::to_string(j) + " is not finite");
-    }
-    x[j] = px;
-    y[j] = py;
+    point[j].x = px;
+    point[j].y = py;
+    const double abs_x = std::abs(px), abs_y = std::abs(py);
+    // A sum that is not <= DBL_MAX: a coordinate is not finite (or both are huge; the check below tells).
+    finite &= abs_x + abs_y <= std::numeric_limits<double>::max();
     if (running) {
-      position[j] = locate(px, py, hint, side_low[j], side_high[j]);
-      if (position[j] != kUnknown)
-        hint = position[j];
+      point[j].position = rays.locate(px, py, hint, point[j].side_low, point[j].side_high);
+      if (point[j].position != kUnknown)
+        hint = point[j].position;
     }
     // max(|x|, |y|) is never more than the range (as sqrt rounds it): a gap from it is never wider than
     // joinGap, so within it the points are joined without a square root.
-    const double low = std::max(std::abs(px), std::abs(py));
+    const double low = std::max(abs_x, abs_y);
     const std::uint32_t beam = points[j].beam_index;
     if (j > 0) {
       const std::size_t i = j - 1;
       const bool neighbours = beam == beam1 + 1;
-      next[i] = neighbours ? j : kNoPoint;
+      point[i].next = neighbours ? j : kNoPoint;
       bool joined_i = false;
       if (neighbours) {
         const double dx = px - x1, dy = py - y1;
@@ -327,16 +430,16 @@ void ScanRebinner::readPoints(const Points& points, const BinSweep& sweep) {
         }
       }
       joined[i] = joined_i;
-      // point 0's previous point, on a full circle the last, is not known yet: measured again below
-      length2[i] = 0.0;  // no neighbours' line: never flat
-      if (i > 0 && linked0 && neighbours) {
-        const double ex = px - x0, ey = py - y0;
-        const double c = cross(ex, ey, x1 - x0, y1 - y0);
-        length2[i] = ex * ex + ey * ey;
-        cross2[i] = c * c;
-        if (length2[i] != 0.0 && joined0 && joined_i)
-          candidates[candidate_count++] = static_cast<std::uint32_t>(i);
-      }
+      // Point i's distance from the line through i - 1 and j, computed whether or not they are its
+      // neighbours (branch-free): length2 0 says "no neighbours' line, never flat". Point 0's previous
+      // point, on a full circle the last, is not known yet: measured again below.
+      const double ex = px - x0, ey = py - y0;
+      const double l2 = ex * ex + ey * ey;
+      point[i].cross = cross(ex, ey, x1 - x0, y1 - y0);
+      point[i].length2 = linked0 && neighbours ? l2 : 0.0;
+      // joined0 is false for i == 0 (and implies linked0); joined_i implies neighbours.
+      candidates[candidate_count] = static_cast<std::uint32_t>(i);
+      candidate_count += joined0 && joined_i && l2 != 0.0;
       linked0 = neighbours;
       joined0 = joined_i;
     }
@@ -347,12 +450,18 @@ void ScanRebinner::readPoints(const Points& points, const BinSweep& sweep) {
     low1 = low;
     beam1 = beam;
   }
+  if (!finite) {
+    for (std::size_t j = 0; j < point_count; ++j) {
+      if (!std::isfinite(point[j].x) || !std::isfinite(point[j].y))
+        throw InvalidInput("points", "corrected point " + std::to_string(j) + " is not finite");
+    }
+  }
   if (point_count > 0) {
     // For a full-circle grid the last beam also neighbours the first.
     const std::size_t last = point_count - 1;
     const bool wraps = sweep.isFullCircle() && point_count > 2 && points.front().beam_index == 0 &&
                        points.back().beam_index + 1 == sweep.binCount();
-    next[last] = wraps ? 0 : kNoPoint;
+    point[last].next = wraps ? 0 : kNoPoint;
     joined[last] = wraps && isJoined(last, 0);
     if (measureResidual(last, previous(last)))
       candidates[candidate_count++] = static_cast<std::uint32_t>(last);
@@ -362,28 +471,28 @@ void ScanRebinner::readPoints(const Points& points, const BinSweep& sweep) {
       ++candidate_count;
     }
   }
-  candidates_.resize(candidate_count);
+  candidate_count_ = candidate_count;
 }
 
 double ScanRebinner::rangeOf(std::size_t j) {
-  if (range_[j] < 0.0)
-    range_[j] = std::sqrt(x_[j] * x_[j] + y_[j] * y_[j]);
+  if (range_[j] == 0.0)  // not yet (a point at the sensor's origin computes its 0 again)
+    range_[j] = std::sqrt(point_[j].x * point_[j].x + point_[j].y * point_[j].y);
   return range_[j];
 }
 
 double ScanRebinner::bearingOf(std::size_t j) {
-  if (bearing_[j] == kInfinity)
-    bearing_[j] = fastAtan2(y_[j], x_[j]);
+  if (bearing_[j] == 0.0)  // not yet (or a bearing of 0, computed again)
+    bearing_[j] = fastAtan2(point_[j].y, point_[j].x);
   return bearing_[j];
 }
 
 void ScanRebinner::findFlatPoints() {
-  const std::size_t point_count = x_.size();
+  const std::size_t point_count = point_.size();
   // The scan's own noise: the median distance of points within one contour, from every stride-th.
-  noise_sample_.clear();
-  const std::size_t stride = std::max<std::size_t>(1, candidates_.size() / kNoiseSampleSize);
-  for (std::size_t s = 0; s < candidates_.size(); s += stride)
-    noise_sample_.push_back(residual(candidates_[s]));
+  const std::size_t stride = std::max<std::size_t>(1, candidate_count_ / kNoiseSampleSize);
+  noise_sample_.resize((candidate_count_ + stride - 1) / stride);
+  for (std::size_t s = 0, k = 0; s < candidate_count_; s += stride, ++k)
+    noise_sample_[k] = residual(candidates_[s]);
   double median = 0.0;
   if (!noise_sample_.empty()) {
     const auto middle = noise_sample_.begin() + static_cast<std::ptrdiff_t>(noise_sample_.size() / 2);
@@ -394,15 +503,18 @@ void ScanRebinner::findFlatPoints() {
   const double tolerance2 = flat_tolerance_ * flat_tolerance_;
   flat_.resize(point_count);
   char* const flat = flat_.data();
-  const double* const cross2 = cross2_.data();
-  const double* const length2 = length2_.data();
+  const PointState* const point = point_.data();
   for (std::size_t j = 0; j < point_count; ++j) {
-    const double limit2 = tolerance2 * length2[j];
-    if (length2[j] == 0.0) {
+    const double length2 = point[j].length2;
+    if (length2 == 0.0) {  // no neighbours' line: never flat
       flat[j] = 0;
-    } else if (cross2[j] <= limit2 * (1.0 - kSquaredMargin) && limit2 > 1e-200) {
+      continue;
+    }
+    const double limit2 = tolerance2 * length2;
+    const double cross2 = point[j].cross * point[j].cross;
+    if (cross2 <= limit2 * (1.0 - kSquaredMargin) && limit2 > 1e-200) {
       flat[j] = 1;
-    } else if (cross2[j] >= limit2 * (1.0 + kSquaredMargin) && limit2 > 1e-200) {
+    } else if (cross2 >= limit2 * (1.0 + kSquaredMargin) && limit2 > 1e-200) {
       flat[j] = 0;
     } else {
       flat[j] = residual(j) <= flat_tolerance_;  // near the tolerance: as sqrt and division decide it
@@ -411,25 +523,23 @@ void ScanRebinner::findFlatPoints() {
 }
 
 double ScanRebinner::residual(std::size_t j) const {
-  const std::size_t p = previous(j), q = next_[j];
-  const double ex = x_[q] - x_[p], ey = y_[q] - y_[p];
-  const double length = std::sqrt(ex * ex + ey * ey);
-  return std::abs(cross(ex, ey, x_[j] - x_[p], y_[j] - y_[p])) / length;
+  // As |cross(e, j - p)| / |e| with e = next - previous, both kept by readPoints (length2 = |e|^2).
+  return std::abs(point_[j].cross) / std::sqrt(point_[j].length2);
 }
 
 void ScanRebinner::classifyLinks(const BinSweep& sweep) {
-  const std::size_t point_count = x_.size();
+  const std::size_t point_count = point_.size();
   link_.resize(point_count);
   corner_x_.resize(point_count);
   corner_y_.resize(point_count);
   // First the links one of whose points is flat (surfaces) and the corners; the rest wait (kStep) for
   // traceContours(), which tells a depth step from the surfaces on both sides.
-  const std::size_t* const next = next_.data();
+  const PointState* const point = point_.data();
   const char* const flat = flat_.data();
   const char* const joined = joined_.data();
   Link* const link = link_.data();
   for (std::size_t j = 0; j < point_count; ++j) {
-    const std::size_t q = next[j];
+    const std::size_t q = point[j].next;
     if (q == kNoPoint) {
       link[j] = Link::kNone;
       continue;
@@ -446,7 +556,7 @@ void ScanRebinner::classifyLinks(const BinSweep& sweep) {
     const auto close = [&](std::size_t a, std::size_t b, std::size_t confirm) {
       return joined_[a] || (nearlyJoined(a, b, sweep) && (confirm == kNoPoint || flat_[confirm]));
     };
-    const std::size_t p = previous(j), r = next_[q];
+    const std::size_t p = previous(j), r = point_[q].next;
     if (p != kNoPoint && r != kNoPoint && close(j, q, kNoPoint) && close(p, j, p) && close(q, r, r) &&
         findCorner(p, j, q, r, corner_x_[j], corner_y_[j])) {
       link[j] = Link::kCorner;
@@ -458,7 +568,7 @@ void ScanRebinner::classifyLinks(const BinSweep& sweep) {
 
 ScanRebinner::Link ScanRebinner::resolveStep(std::size_t j, const BinSweep& sweep) {
   // A waiting link is a depth step when its farther point continues a surface on its other side.
-  const std::size_t q = next_[j];
+  const std::size_t q = point_[j].next;
   const bool far_is_next = rangeOf(q) > rangeOf(j);
   const std::size_t far_side = far_is_next ? q : previous(j);
   const bool far_continues = far_side != kNoPoint && link_[far_side] == Link::kSurface;
@@ -467,7 +577,8 @@ ScanRebinner::Link ScanRebinner::resolveStep(std::size_t j, const BinSweep& swee
   const bool adjacent =
       std::abs(wrapDelta(bearingOf(q) - bearingOf(j))) <= kMaxStepBins * sweep.absIncrement();
   if (!adjacent || std::abs(rangeOf(q) - rangeOf(j)) <= flat_tolerance_ ||
-      !continuationIsSure(far_is_next ? j : q, far_is_next ? q : j, far_is_next ? next_[q] : previous(j))) {
+      !continuationIsSure(far_is_next ? j : q, far_is_next ? q : j,
+                          far_is_next ? point_[q].next : previous(j))) {
     return joined_[j] ? Link::kChord : Link::kNone;
   }
   return Link::kStep;
@@ -481,34 +592,31 @@ void ScanRebinner::traceContours(const Points& points, const BinSweep& sweep) {
   const bool precise = flat_tolerance_ <= kStepErrorBudget;
   const auto continues = [](Link link) { return link != Link::kNone && link != Link::kStep; };
   // Plain pointers and locals: a store through a byte (a resolved link) may alias any member.
-  const double* const x = x_.data();
-  const double* const y = y_.data();
-  const std::size_t* const next = next_.data();
+  const PointState* const point = point_.data();
   Link* const link = link_.data();
-  const std::size_t* const position = position_.data();
-  const double* const side_low = side_low_.data();
-  const double* const side_high = side_high_.data();
   const bool running = running_, with_intensities = with_intensities_;
   // One pass over the links in order (so the nearest crossing of a bin is chosen as before when two are
   // equally near); the points where a contour ends are noted on the way and traced after every link.
   ends_.clear();
   for (std::size_t j = 0; j < point_count; ++j) {
-    const std::size_t q = next[j];
+    const std::size_t q = point[j].next;
     Link kind = link[j];
     if (kind == Link::kStep) {
       kind = resolveStep(j, sweep);  // a step's far side is only compared with kSurface: order is free
       link[j] = kind;
     }
     if (kind == Link::kSurface ||
-        (kind == Link::kChord && !(precise && std::hypot(x[q] - x[j], y[q] - y[j]) > 2.0 * kGuessBudget))) {
+        (kind == Link::kChord &&
+         !(precise && std::hypot(point[q].x - point[j].x, point[q].y - point[j].y) > 2.0 * kGuessBudget))) {
       // A segment (a chord longer than 2 kGuessBudget: its surface cannot be told, left empty). Less than
       // a quarter turn wide (so not through the sensor): by running bin positions.
       const float a_intensity = with_intensities ? intensity(j) : 0.0f;
       const float b_intensity = with_intensities ? intensity(q) : 0.0f;
-      const double ax = x[j], ay = y[j], bx = x[q], by = y[q];
-      if (running && ax * bx + ay * by > 0.0 && position[j] != kUnknown && position[q] != kUnknown) {
-        crossRays(ax, ay, position[j], side_low[j], side_high[j], a_intensity, bx, by, position[q],
-                  side_low[q], side_high[q], b_intensity);
+      const double ax = point[j].x, ay = point[j].y, bx = point[q].x, by = point[q].y;
+      if (running && ax * bx + ay * by > 0.0 && point[j].position != kUnknown &&
+          point[q].position != kUnknown) {
+        crossRays(ax, ay, point[j].position, point[j].side_low, point[j].side_high, a_intensity, bx, by,
+                  point[q].position, point[q].side_low, point[q].side_high, b_intensity);
       } else {
         crossSegmentByBearing(ax, ay, bearingOf(j), a_intensity, bx, by, bearingOf(q), b_intensity, sweep);
       }
@@ -518,11 +626,11 @@ void ScanRebinner::traceContours(const Points& points, const BinSweep& sweep) {
       // The far contour's end segment continued behind the near point, over the bearings between.
       const bool far_is_next = rangeOf(q) > rangeOf(j);
       const std::size_t near = far_is_next ? j : q, far = far_is_next ? q : j;
-      const std::size_t beyond = far_is_next ? next[q] : previous(j);
+      const std::size_t beyond = far_is_next ? point[q].next : previous(j);
       const double delta = wrapDelta(bearingOf(far) - bearingOf(near));
-      extendLine(points, far, x[far] - x[beyond], y[far] - y[beyond], kInfinity, rangeOf(near),
-                 std::min(bearingOf(near), bearingOf(near) + delta), std::abs(delta), sweep, kMaxStepSlant,
-                 false, rangeOf(far) + flat_tolerance_);
+      extendLine(points, far, point[far].x - point[beyond].x, point[far].y - point[beyond].y, kInfinity,
+                 rangeOf(near), std::min(bearingOf(near), bearingOf(near) + delta), std::abs(delta), sweep,
+                 kMaxStepSlant, false, rangeOf(far) + flat_tolerance_);
     }
     // Both links of point j are final now (point 0's left one, the full circle's last, comes last). A
     // link of j - 1 that continues a contour joins it to j.
@@ -531,7 +639,7 @@ void ScanRebinner::traceContours(const Points& points, const BinSweep& sweep) {
   }
   if (point_count > 0) {
     const std::size_t p = previous(0);
-    const Link right = next[0] == kNoPoint ? Link::kNone : link[0];
+    const Link right = point[0].next == kNoPoint ? Link::kNone : link[0];
     if (!(continues(p == kNoPoint ? Link::kNone : link[p]) && continues(right)))
       ends_.insert(ends_.begin(), 0);
   }
@@ -539,28 +647,28 @@ void ScanRebinner::traceContours(const Points& points, const BinSweep& sweep) {
   for (const std::size_t j : ends_) {
     const std::size_t p = previous(j);
     const Link left = p == kNoPoint ? Link::kNone : link_[p];
-    const Link right = next_[j] == kNoPoint ? Link::kNone : link_[j];
+    const Link right = point_[j].next == kNoPoint ? Link::kNone : link_[j];
     const double half_bin = 0.5 * abs_increment;
     const auto endReach = [&](std::size_t a, std::size_t b) {
       return precise ? std::min(kGuessBudget, joinGap(a, b, abs_increment)) : joinGap(a, b, abs_increment);
     };
     if (!continues(left) && !continues(right)) {
       // Lone return: a facet facing the sensor.
-      extendLine(points, j, -y_[j], x_[j], endReach(j, j), 0.0, bearingOf(j) - half_bin, abs_increment,
-                 sweep);
+      extendLine(points, j, -point_[j].y, point_[j].x, endReach(j, j), 0.0, bearingOf(j) - half_bin,
+                 abs_increment, sweep);
       continue;
     }
     const bool from_left = continues(left);
     // Follow the end segment (from the neighbour, or the corner, towards j) for up to half a bin; the
     // near end of a step only into bins the far contour did not reach.
     const Link end = from_left ? right : left;
-    const bool near_end_of_step = end == Link::kStep && rangeOf(j) < rangeOf(from_left ? next_[j] : p);
-    const std::size_t neighbour = from_left ? p : next_[j];
+    const bool near_end_of_step = end == Link::kStep && rangeOf(j) < rangeOf(from_left ? point_[j].next : p);
+    const std::size_t neighbour = from_left ? p : point_[j].next;
     const Link kept = from_left ? left : right;
     const std::size_t corner_of = from_left ? p : j;
-    const double nx = kept == Link::kCorner ? corner_x_[corner_of] : x_[neighbour];
-    const double ny = kept == Link::kCorner ? corner_y_[corner_of] : y_[neighbour];
-    extendLine(points, j, x_[j] - nx, y_[j] - ny, endReach(j, neighbour), 0.0,
+    const double nx = kept == Link::kCorner ? corner_x_[corner_of] : point_[neighbour].x;
+    const double ny = kept == Link::kCorner ? corner_y_[corner_of] : point_[neighbour].y;
+    extendLine(points, j, point_[j].x - nx, point_[j].y - ny, endReach(j, neighbour), 0.0,
                bearingOf(j) - half_bin - kBearingError, abs_increment + 2.0 * kBearingError, sweep, 0.0,
                near_end_of_step);
   }
@@ -591,7 +699,7 @@ bool ScanRebinner::nearlyJoined(std::size_t a, std::size_t b, const BinSweep& sw
   // the flat test is evidence of one surface only when the noise is small against the error budget
   if (flat_tolerance_ > kStepErrorBudget)
     return false;
-  const double dx = x_[b] - x_[a], dy = y_[b] - y_[a];
+  const double dx = point_[b].x - point_[a].x, dy = point_[b].y - point_[a].y;
   const double limit = kFlatJoinGaps * joinGap(a, b, abs_increment);
   return std::abs(wrapDelta(bearingOf(b) - bearingOf(a))) <= kMaxStepBins * abs_increment &&
          dx * dx + dy * dy <= limit * limit;
@@ -604,22 +712,22 @@ double ScanRebinner::joinGap(std::size_t a, std::size_t b, double abs_increment)
 bool ScanRebinner::continuationIsSure(std::size_t near, std::size_t far, std::size_t beyond) {
   if (beyond == kNoPoint)
     return false;
-  const double segment = std::hypot(x_[far] - x_[beyond], y_[far] - y_[beyond]);
+  const double segment = std::hypot(point_[far].x - point_[beyond].x, point_[far].y - point_[beyond].y);
   // [m] how far the continuation runs along a wall facing the sensor: to the near point's bearing
   const double run = rangeOf(far) * std::abs(wrapDelta(bearingOf(far) - bearingOf(near)));
   return segment > 0.0 && flat_tolerance_ * (1.0 + run / segment) <= kStepErrorBudget;
 }
 
 std::size_t ScanRebinner::previous(std::size_t j) const {
-  const std::size_t candidate = j > 0 ? j - 1 : next_.size() - 1;
-  return next_[candidate] == j ? candidate : kNoPoint;
+  const std::size_t candidate = j > 0 ? j - 1 : point_.size() - 1;
+  return point_[candidate].next == j ? candidate : kNoPoint;
 }
 
 bool ScanRebinner::findCorner(std::size_t a0, std::size_t a, std::size_t b, std::size_t b1, double& corner_x,
                               double& corner_y) const {
-  const double ax = x_[a], ay = y_[a], bx = x_[b], by = y_[b];
-  const double dax = ax - x_[a0], day = ay - y_[a0];  // along the wall before a, towards a
-  const double dbx = x_[b1] - bx, dby = y_[b1] - by;  // along the wall after b, away from b
+  const double ax = point_[a].x, ay = point_[a].y, bx = point_[b].x, by = point_[b].y;
+  const double dax = ax - point_[a0].x, day = ay - point_[a0].y;  // along the wall before a, towards a
+  const double dbx = point_[b1].x - bx, dby = point_[b1].y - by;  // along the wall after b, away from b
   const double denominator = cross(dax, day, dbx, dby);
   if (denominator == 0.0)
     return false;
@@ -640,97 +748,26 @@ bool ScanRebinner::findCorner(std::size_t a0, std::size_t a, std::size_t b, std:
   return to_a2 <= 4.0 * chord2 && to_b2 <= 4.0 * chord2;  // plausibly near both
 }
 
-[[gnu::always_inline]] inline double ScanRebinner::side(std::size_t ray, double px, double py) const {
-  return direction_ * cross(ray_cos_[ray], ray_sin_[ray], px, py);
-}
-
-[[gnu::always_inline]] inline std::size_t ScanRebinner::walk(std::size_t ray, double px, double py,
-                                                             double& low, double& high) const {
-  double at = side(ray, px, py);
-  for (int step = 0; step < kMaxWalk; ++step) {
-    if (at < 0.0) {  // before this ray: one back
-      ray = previousRay(ray);
-      at = side(ray, px, py);
-      continue;
-    }
-    const std::size_t next = nextRay(ray);
-    const double at_next = side(next, px, py);
-    if (at_next < 0.0) {
-      low = at;
-      high = at_next;
-      return ray;
-    }
-    ray = next;
-    at = at_next;
-  }
-  return kUnknown;
-}
-
-[[gnu::always_inline]] inline std::size_t ScanRebinner::locate(double px, double py, std::size_t hint,
-                                                               double& low, double& high) const {
-  // Most points lie on or past the previous point's ray and before the one after next: two rays tried.
-  const std::size_t next = nextRay(hint);
-  const double at_next = side(next, px, py);
-  if (at_next >= 0.0) {
-    const std::size_t after = nextRay(next);
-    const double at_after = side(after, px, py);
-    if (at_after < 0.0) {
-      low = at_next;
-      high = at_after;
-      return next;
-    }
-  } else {
-    const double at = side(hint, px, py);
-    if (at >= 0.0) {
-      low = at;
-      high = at_next;
-      return hint;
-    }
-  }
-  return locateFar(px, py, hint, low, high);
-}
-
-std::size_t ScanRebinner::locateFar(double px, double py, std::size_t hint, double& low, double& high) const {
-  std::size_t found = walk(hint, px, py, low, high);
-  if (found != kUnknown)
-    return found;
-  // Far from the hint: start again from the point's bearing (within a ray of its position).
-  const double offset =
-      wrapToTurn(direction_ * (fastAtan2(py, px) - static_cast<double>(rays_grid_.angle_min)));
-  const double ray = std::floor(offset / std::abs(static_cast<double>(rays_grid_.angle_increment)));
-  found = walk(std::min(static_cast<std::size_t>(std::max(ray, 0.0)), ray_count_ - 1), px, py, low, high);
-  if (found != kUnknown)
-    return found;
-  for (std::size_t candidate = 0; candidate < ray_count_; ++candidate) {  // never needed so far
-    const double at = side(candidate, px, py);
-    const double after = side(nextRay(candidate), px, py);
-    if (at >= 0.0 && after < 0.0) {
-      low = at;
-      high = after;
-      return candidate;
-    }
-  }
-  return kUnknown;
-}
-
 void ScanRebinner::crossCorner(std::size_t j, std::size_t q, float j_intensity, float q_intensity,
                                const BinSweep& sweep) {
   const double cx = corner_x_[j], cy = corner_y_[j];
-  if (running_ && x_[j] * cx + y_[j] * cy > 0.0 && cx * x_[q] + cy * y_[q] > 0.0 &&
-      position_[j] != kUnknown && position_[q] != kUnknown) {
+  if (running_ && point_[j].x * cx + point_[j].y * cy > 0.0 && cx * point_[q].x + cy * point_[q].y > 0.0 &&
+      point_[j].position != kUnknown && point_[q].position != kUnknown) {
     double low = 0.0, high = 0.0;
-    const std::size_t corner = locate(cx, cy, position_[j], low, high);
+    const std::size_t corner = rays().locate(cx, cy, point_[j].position, low, high);
     if (corner != kUnknown) {
-      crossRays(x_[j], y_[j], position_[j], side_low_[j], side_high_[j], j_intensity, cx, cy, corner, low,
-                high, j_intensity);
-      crossRays(cx, cy, corner, low, high, q_intensity, x_[q], y_[q], position_[q], side_low_[q],
-                side_high_[q], q_intensity);
+      crossRays(point_[j].x, point_[j].y, point_[j].position, point_[j].side_low, point_[j].side_high,
+                j_intensity, cx, cy, corner, low, high, j_intensity);
+      crossRays(cx, cy, corner, low, high, q_intensity, point_[q].x, point_[q].y, point_[q].position,
+                point_[q].side_low, point_[q].side_high, q_intensity);
       return;
     }
   }
   const double corner_bearing = fastAtan2(cy, cx);
-  crossSegmentByBearing(x_[j], y_[j], bearingOf(j), j_intensity, cx, cy, corner_bearing, j_intensity, sweep);
-  crossSegmentByBearing(cx, cy, corner_bearing, q_intensity, x_[q], y_[q], bearingOf(q), q_intensity, sweep);
+  crossSegmentByBearing(point_[j].x, point_[j].y, bearingOf(j), j_intensity, cx, cy, corner_bearing,
+                        j_intensity, sweep);
+  crossSegmentByBearing(cx, cy, corner_bearing, q_intensity, point_[q].x, point_[q].y, bearingOf(q),
+                        q_intensity, sweep);
 }
 
 [[gnu::always_inline]] inline void ScanRebinner::crossRays(double ax, double ay, std::size_t a_ray,
@@ -825,7 +862,7 @@ void ScanRebinner::crossSegmentByBearing(double ax, double ay, double a_bearing,
 void ScanRebinner::extendLine(const Points& points, std::size_t p, double dx, double dy, double reach,
                               double min_range, double low, double width, const BinSweep& sweep,
                               double max_slant, bool only_empty, double max_range) {
-  const double px = x_[p], py = y_[p];
+  const double px = point_[p].x, py = point_[p].y;
   const double direction_norm = std::sqrt(dx * dx + dy * dy);
   if (direction_norm == 0.0)
     return;

@@ -94,9 +94,9 @@ class ScanRebinner {
   // pass over the points or links; square roots, bearings and divisions only where a rule needs them.
   /// Recomputes ray_cos_ / ray_sin_ (and the bins) when `grid` differs from the one they were made for.
   void updateRays(const AngleGrid& grid);
-  /// One pass over the points: fills x_, y_ (ranges and bearings come when asked for), the running bin
-  /// positions, next_ (the neighbouring point, or kNoPoint), joined_ (close enough for one contour) and
-  /// each point's distance from the line through its neighbours (as cross2_, length2_); throws
+  /// One pass over the points: fills point_ (x, y, the running bin positions, next: the neighbouring
+  /// point or kNoPoint, and each point's distance from the line through its neighbours as cross, length2;
+  /// ranges and bearings come when asked for) and joined_ (close enough for one contour); throws
   /// InvalidInput("points") for a non-finite point.
   void readPoints(const Points& points, const BinSweep& sweep);
   /// Fills flat_: points that lie on the line through their two joined neighbours, within a tolerance
@@ -131,24 +131,16 @@ class ScanRebinner {
   /// Whether a step's far contour (its end point `far`, the point `beyond` before it on that contour) can
   /// be continued behind `near` within kStepErrorBudget given the scan's noise (flat_tolerance_).
   inline bool continuationIsSure(std::size_t near, std::size_t far, std::size_t beyond);
-  /// The point before j on its contour side (j's predecessor whose next_ is j), or kNoPoint.
+  /// The point before j on its contour side (j's predecessor whose next is j), or kNoPoint.
   inline std::size_t previous(std::size_t j) const;
   /// Whether the corner of the line through (a0, a) and the line through (b, b1) lies between a and b.
   inline bool findCorner(std::size_t a0, std::size_t a, std::size_t b, std::size_t b1, double& corner_x,
                          double& corner_y) const;
-  /// [m] how far the point (px, py) lies past ray `ray` in the grid's direction (negative: before it).
-  inline double side(std::size_t ray, double px, double py) const;
   /// The ray after `ray` and the one before it, the rays taken round (the last ray's next is the first).
   std::size_t nextRay(std::size_t ray) const { return ray + 1 == ray_count_ ? 0 : ray + 1; }
-  std::size_t previousRay(std::size_t ray) const { return ray == 0 ? ray_count_ - 1 : ray - 1; }
-  /// The running bin position of (px, py): the ray it lies on or past whose next ray it lies before,
-  /// walking from `ray`, with side() of both (`low` >= 0, `high` < 0); kUnknown when not within
-  /// kMaxWalk rays of it.
-  inline std::size_t walk(std::size_t ray, double px, double py, double& low, double& high) const;
-  /// As walk(), from `hint` (the ray at or after it, tried first) and, when too far from it, from the
-  /// point's bearing (locateFar, out of line).
-  inline std::size_t locate(double px, double py, std::size_t hint, double& low, double& high) const;
-  std::size_t locateFar(double px, double py, std::size_t hint, double& low, double& high) const;
+  /// The rays for running bin positions, by value (defined in rebin.cpp): locate() and walk() there.
+  struct Rays;
+  Rays rays() const;
   /// A kCorner link j -> q: the two segments through its corner.
   inline void crossCorner(std::size_t j, std::size_t q, float j_intensity, float q_intensity,
                           const BinSweep& sweep);
@@ -182,26 +174,32 @@ class ScanRebinner {
   /// go on past the grid's last bin to complete the turn: ray_count_ >= rays_grid_.count.
   bool running_ = false;
   std::size_t ray_count_ = 0;
-  double direction_ = 1.0;                 // the sign of angle_increment
-  std::vector<double> ray_cos_, ray_sin_;  // unit ray direction of every ray
-  std::vector<double> best_range_;         // [m] nearest crossing per bin so far (+inf between scans)
-  std::vector<float> best_intensity_;      // its intensity (0 between scans)
-  bool with_intensities_ = false;          // the scan carries intensities
-  bool bins_in_use_ = false;               // between the first offer and writeNearestCrossings()
-  std::vector<double> x_, y_;              // [m] the corrected points
-  std::vector<double> range_, bearing_;    // [m], [rad] their polar form where computed (-1, +inf: not yet)
-  std::vector<std::size_t> position_;      // their running bin positions (kUnknown: not found)
-  std::vector<double> side_low_, side_high_;  // [m] side() of the rays at and after their positions
-  std::vector<std::size_t> next_;             // the neighbouring point (beam index + 1), or kNoPoint
-  std::vector<char> joined_;                  // j and next_[j] are close enough for one contour
-  std::vector<char> flat_;                    // j lies on the line through its two joined neighbours
-  std::vector<Link> link_;                    // what joins j and next_[j]
-  std::vector<double> corner_x_, corner_y_;   // [m] the corner of a kCorner link
-  std::vector<double> cross2_, length2_;      // [m^4], [m^2] of j's distance from its neighbours' line
-  std::vector<std::uint32_t> candidates_;     // points whose distance from that line estimates the noise
-  std::vector<double> noise_sample_;          // [m] scratch for the noise estimate
-  std::vector<std::size_t> ends_;             // points where a contour ends (or a lone return)
-  double flat_tolerance_ = 0.0;               // [m] of the last scan
+  double direction_ = 1.0;                   // the sign of angle_increment
+  std::vector<double> ray_cos_, ray_sin_;    // unit ray direction of every ray
+  std::vector<double> side_cos_, side_sin_;  // the same times direction_ (for side())
+  std::vector<double> best_range_;           // [m] nearest crossing per bin so far (+inf between scans)
+  std::vector<float> best_intensity_;        // its intensity (0 between scans)
+  bool with_intensities_ = false;            // the scan carries intensities
+  bool bins_in_use_ = false;                 // between the first offer and writeNearestCrossings()
+  /// What readPoints() finds of one corrected point, in one place (a per-point loop needs one pointer).
+  struct PointState {
+    double x, y;                 // [m] the corrected point
+    double side_low, side_high;  // [m] side() of the rays at and after its running position
+    double cross, length2;       // [m^2], [m^2] of its distance from its neighbours' line (length2 0: none)
+    std::size_t position;        // its running bin position (kUnknown: not found)
+    std::size_t next;            // the neighbouring point (beam index + 1), or kNoPoint
+  };
+  std::vector<PointState> point_;
+  std::vector<double> range_, bearing_;      // [m], [rad] their polar form where computed (0: not yet)
+  std::vector<char> joined_;                 // j and its next are close enough for one contour
+  std::vector<char> flat_;                   // j lies on the line through its two joined neighbours
+  std::vector<Link> link_;                   // what joins j and its next
+  std::vector<double> corner_x_, corner_y_;  // [m] the corner of a kCorner link
+  std::vector<std::uint32_t> candidates_;    // points whose distance from that line estimates the noise
+  std::size_t candidate_count_ = 0;          // how many of candidates_ are set (it keeps its size)
+  std::vector<double> noise_sample_;         // [m] scratch for the noise estimate
+  std::vector<std::size_t> ends_;            // points where a contour ends (or a lone return)
+  double flat_tolerance_ = 0.0;              // [m] of the last scan
 };
 
 }  // namespace lidar_deskew::core
