@@ -233,6 +233,9 @@ struct ScanRebinner::Rays {
   [[gnu::always_inline]] std::size_t locate(double px, double py, std::size_t hint, double& low,
                                             double& high) const {
     // Most points lie on or past the previous point's ray and before the one after next: two rays tried.
+    // A scan that turned with the sensor spreads its points over more than its grid, so every few points
+    // one lies a ray further: three, where walk() from the hint would go forward too (the point on or past
+    // the hint's ray) and so find the same.
     const std::size_t after_hint = next(hint);
     const double at_next = side(after_hint, px, py);
     if (at_next >= 0.0) {
@@ -242,6 +245,13 @@ struct ScanRebinner::Rays {
         low = at_next;
         high = at_after;
         return after_hint;
+      }
+      const std::size_t further = next(after);
+      const double at_further = side(further, px, py);
+      if (at_further < 0.0 && side(hint, px, py) >= 0.0) {
+        low = at_after;
+        high = at_further;
+        return after;
       }
     } else {
       const double at = side(hint, px, py);
@@ -285,6 +295,94 @@ ScanRebinner::Rays ScanRebinner::rays() const {
           static_cast<double>(rays_grid_.angle_min),
           std::abs(static_cast<double>(rays_grid_.angle_increment)),
           direction_};
+}
+
+/// The rays and the bins' nearest crossings, copied into locals for the per-link loops (a store through
+/// a byte, a resolved link, may alias any member: members would be loaded again every link).
+struct ScanRebinner::Bins {
+  const double* ray_cos;  // unit direction of every ray
+  const double* ray_sin;
+  double* best_range;  // [m] per bin
+  float* best_intensity;
+  std::size_t bin_count;
+  std::size_t ray_count;
+  bool with_intensities;
+
+  /// The segment (ax, ay) -> (bx, by), less than a quarter turn wide, its ends at running positions
+  /// a_ray and b_ray (with their side() values): offers the rays between them, and the ray at or before
+  /// the earlier end and the one after the later end where that end lies on it (within the vertex
+  /// tolerance).
+  [[gnu::always_inline]] void crossRays(double ax, double ay, std::size_t a_ray, double a_low, double a_high,
+                                        float a_intensity, double bx, double by, std::size_t b_ray,
+                                        double b_low, double b_high, float b_intensity) const {
+    const double ex = bx - ax, ey = by - ay;
+    const double numerator = cross(ax, ay, ex, ey);
+    // The crossing of one ray, tested as crossSegmentByBearing tests it; u (= along / denominator) plainly
+    // within [0, 1] needs no division, plainly outside it (by twice the vertex tolerance) is rejected. A
+    // ray parallel to the segment (denominator 0) needs no test of its own: along 0 gives a range of
+    // +-inf or NaN, which no bin keeps; other alongs are outside [0, 0].
+    const auto crossRay = [&](std::size_t ray) {
+      if (ray >= bin_count)
+        return;  // past the grid's last bin
+      const double ray_x = ray_cos[ray], ray_y = ray_sin[ray];
+      const double denominator = cross(ray_x, ray_y, ex, ey);
+      const double along = cross(ax, ay, ray_x, ray_y);
+      const double magnitude = std::abs(denominator), signed_along = denominator < 0.0 ? -along : along;
+      if (!(signed_along >= 0.0 && signed_along <= magnitude)) {
+        if (signed_along < -2.0 * kVertexTolerance * magnitude ||
+            signed_along > (1.0 + 2.0 * kVertexTolerance) * magnitude) {
+          return;
+        }
+        const double u = along / denominator;
+        if (u < -kVertexTolerance || u > 1.0 + kVertexTolerance)
+          return;
+      }
+      const double range = numerator / denominator;
+      if (range <= 0.0 || !(range < best_range[ray]))
+        return;
+      best_range[ray] = range;
+      if (with_intensities) {
+        const double u = along / denominator;
+        best_intensity[ray] = static_cast<float>((1.0 - u) * a_intensity + u * b_intensity);
+      }
+    };
+    // Rays strictly between the two positions cross the segment; the ray at or before the earlier point
+    // and the one after the later point only when that point lies (almost) on it: within the vertex
+    // tolerance of |e| (|cross(ray, point)| is the point's distance from the ray).
+    const double near_ray = 2.0 * kVertexTolerance * (std::abs(ex) + std::abs(ey));
+    std::size_t forward = b_ray >= a_ray ? b_ray - a_ray : b_ray + ray_count - a_ray;
+    std::size_t first = a_ray;
+    bool test_first = a_low <= near_ray, test_last = -b_high <= near_ray;
+    if (forward == 0) {
+      test_first = test_first || b_low <= near_ray;
+      test_last = test_last || -a_high <= near_ray;
+    } else if (forward > ray_count / 2) {  // b before a in the grid's direction
+      forward = ray_count - forward;
+      first = b_ray;
+      test_first = b_low <= near_ray;
+      test_last = -a_high <= near_ray;
+    }
+    // One loop over them all, so the crossing test is inlined once; the rays taken round only where they
+    // pass the last one.
+    std::size_t ray = first + (test_first ? 0 : 1);
+    if (ray == ray_count)
+      ray = 0;
+    const std::size_t count = forward + (test_first ? 1 : 0) + (test_last ? 1 : 0);
+    if (ray + count <= ray_count) {
+      for (const std::size_t end = ray + count; ray < end; ++ray)
+        crossRay(ray);
+      return;
+    }
+    for (std::size_t k = 0; k < count; ++k) {
+      crossRay(ray);
+      ray = ray + 1 == ray_count ? 0 : ray + 1;
+    }
+  }
+};
+
+ScanRebinner::Bins ScanRebinner::bins() {
+  return {ray_cos_.data(),    ray_sin_.data(), best_range_.data(), best_intensity_.data(),
+          best_range_.size(), ray_count_,      with_intensities_};
 }
 
 void ScanRebinner::updateRays(const AngleGrid& grid) {
@@ -594,7 +692,9 @@ void ScanRebinner::traceContours(const Points& points, const BinSweep& sweep) {
   // Plain pointers and locals: a store through a byte (a resolved link) may alias any member.
   const PointState* const point = point_.data();
   Link* const link = link_.data();
-  const bool running = running_, with_intensities = with_intensities_;
+  const bool running = running_;
+  const Bins bins = this->bins();
+  bool left_continues = false;  // the link of j - 1 (resolved) continues a contour
   // One pass over the links in order (so the nearest crossing of a bin is chosen as before when two are
   // equally near); the points where a contour ends are noted on the way and traced after every link.
   ends_.clear();
@@ -610,13 +710,13 @@ void ScanRebinner::traceContours(const Points& points, const BinSweep& sweep) {
          !(precise && std::hypot(point[q].x - point[j].x, point[q].y - point[j].y) > 2.0 * kGuessBudget))) {
       // A segment (a chord longer than 2 kGuessBudget: its surface cannot be told, left empty). Less than
       // a quarter turn wide (so not through the sensor): by running bin positions.
-      const float a_intensity = with_intensities ? intensity(j) : 0.0f;
-      const float b_intensity = with_intensities ? intensity(q) : 0.0f;
+      // (0 in a scan without intensities: read, never used)
+      const float a_intensity = intensity(j), b_intensity = intensity(q);
       const double ax = point[j].x, ay = point[j].y, bx = point[q].x, by = point[q].y;
       if (running && ax * bx + ay * by > 0.0 && point[j].position != kUnknown &&
           point[q].position != kUnknown) {
-        crossRays(ax, ay, point[j].position, point[j].side_low, point[j].side_high, a_intensity, bx, by,
-                  point[q].position, point[q].side_low, point[q].side_high, b_intensity);
+        bins.crossRays(ax, ay, point[j].position, point[j].side_low, point[j].side_high, a_intensity, bx, by,
+                       point[q].position, point[q].side_low, point[q].side_high, b_intensity);
       } else {
         crossSegmentByBearing(ax, ay, bearingOf(j), a_intensity, bx, by, bearingOf(q), b_intensity, sweep);
       }
@@ -634,8 +734,10 @@ void ScanRebinner::traceContours(const Points& points, const BinSweep& sweep) {
     }
     // Both links of point j are final now (point 0's left one, the full circle's last, comes last). A
     // link of j - 1 that continues a contour joins it to j.
-    if (j > 0 && !(continues(link[j - 1]) && continues(kind)))
+    const bool right_continues = continues(kind);
+    if (j > 0 && !(left_continues && right_continues))
       ends_.push_back(j);
+    left_continues = right_continues;
   }
   if (point_count > 0) {
     const std::size_t p = previous(0);
@@ -756,10 +858,11 @@ void ScanRebinner::crossCorner(std::size_t j, std::size_t q, float j_intensity, 
     double low = 0.0, high = 0.0;
     const std::size_t corner = rays().locate(cx, cy, point_[j].position, low, high);
     if (corner != kUnknown) {
-      crossRays(point_[j].x, point_[j].y, point_[j].position, point_[j].side_low, point_[j].side_high,
-                j_intensity, cx, cy, corner, low, high, j_intensity);
-      crossRays(cx, cy, corner, low, high, q_intensity, point_[q].x, point_[q].y, point_[q].position,
-                point_[q].side_low, point_[q].side_high, q_intensity);
+      const Bins bins = this->bins();
+      bins.crossRays(point_[j].x, point_[j].y, point_[j].position, point_[j].side_low, point_[j].side_high,
+                     j_intensity, cx, cy, corner, low, high, j_intensity);
+      bins.crossRays(cx, cy, corner, low, high, q_intensity, point_[q].x, point_[q].y, point_[q].position,
+                     point_[q].side_low, point_[q].side_high, q_intensity);
       return;
     }
   }
@@ -768,73 +871,6 @@ void ScanRebinner::crossCorner(std::size_t j, std::size_t q, float j_intensity, 
                         j_intensity, sweep);
   crossSegmentByBearing(cx, cy, corner_bearing, q_intensity, point_[q].x, point_[q].y, bearingOf(q),
                         q_intensity, sweep);
-}
-
-[[gnu::always_inline]] inline void ScanRebinner::crossRays(double ax, double ay, std::size_t a_ray,
-                                                           double a_low, double a_high, float a_intensity,
-                                                           double bx, double by, std::size_t b_ray,
-                                                           double b_low, double b_high, float b_intensity) {
-  const double ex = bx - ax, ey = by - ay;
-  const double numerator = cross(ax, ay, ex, ey);
-  const std::size_t bin_count = best_range_.size();
-  const double* const ray_cos = ray_cos_.data();
-  const double* const ray_sin = ray_sin_.data();
-  double* const best_range = best_range_.data();
-  const bool with_intensities = with_intensities_;
-  // The crossing of one ray, tested as crossSegmentByBearing tests it; u (= along / denominator) plainly
-  // within [0, 1] needs no division, plainly outside it (by twice the vertex tolerance) is rejected.
-  const auto crossRay = [&](std::size_t ray) {
-    if (ray >= bin_count)
-      return;  // past the grid's last bin
-    const double ray_x = ray_cos[ray], ray_y = ray_sin[ray];
-    const double denominator = cross(ray_x, ray_y, ex, ey);
-    if (denominator == 0.0)
-      return;
-    const double along = cross(ax, ay, ray_x, ray_y);
-    const double magnitude = std::abs(denominator), signed_along = denominator < 0.0 ? -along : along;
-    if (!(signed_along >= 0.0 && signed_along <= magnitude)) {
-      if (signed_along < -2.0 * kVertexTolerance * magnitude ||
-          signed_along > (1.0 + 2.0 * kVertexTolerance) * magnitude) {
-        return;
-      }
-      const double u = along / denominator;
-      if (u < -kVertexTolerance || u > 1.0 + kVertexTolerance)
-        return;
-    }
-    const double range = numerator / denominator;
-    if (range <= 0.0 || !(range < best_range[ray]))
-      return;
-    best_range[ray] = range;
-    if (with_intensities) {
-      const double u = along / denominator;
-      best_intensity_[ray] = static_cast<float>((1.0 - u) * a_intensity + u * b_intensity);
-    }
-  };
-  // Rays strictly between the two positions cross the segment; the ray at or before the earlier point and
-  // the one after the later point only when that point lies (almost) on it: within the vertex tolerance
-  // of |e| (|cross(ray, point)| is the point's distance from the ray).
-  const double near_ray = 2.0 * kVertexTolerance * (std::abs(ex) + std::abs(ey));
-  std::size_t forward = b_ray >= a_ray ? b_ray - a_ray : b_ray + ray_count_ - a_ray;
-  std::size_t first = a_ray;
-  bool test_first = a_low <= near_ray, test_last = -b_high <= near_ray;
-  if (forward == 0) {
-    test_first = test_first || b_low <= near_ray;
-    test_last = test_last || -a_high <= near_ray;
-  } else if (forward > ray_count_ / 2) {  // b before a in the grid's direction
-    forward = ray_count_ - forward;
-    first = b_ray;
-    test_first = b_low <= near_ray;
-    test_last = -a_high <= near_ray;
-  }
-  // One loop over them all, so the crossing test is inlined once.
-  std::size_t ray = first;
-  if (!test_first)
-    ray = nextRay(ray);
-  const std::size_t count = forward + (test_first ? 1 : 0) + (test_last ? 1 : 0);
-  for (std::size_t k = 0; k < count; ++k) {
-    crossRay(ray);
-    ray = nextRay(ray);
-  }
 }
 
 void ScanRebinner::crossSegmentByBearing(double ax, double ay, double a_bearing, float a_intensity, double bx,

@@ -144,12 +144,9 @@ class ScanRebinner {
   /// A kCorner link j -> q: the two segments through its corner.
   inline void crossCorner(std::size_t j, std::size_t q, float j_intensity, float q_intensity,
                           const BinSweep& sweep);
-  /// The segment (ax, ay) -> (bx, by), less than a quarter turn wide, its ends at running positions
-  /// a_ray and b_ray (with their side() values): offers the rays between them, and the ray at or before the
-  /// earlier end and the one after the later end where that end lies on it (within the vertex tolerance).
-  inline void crossRays(double ax, double ay, std::size_t a_ray, double a_low, double a_high,
-                        float a_intensity, double bx, double by, std::size_t b_ray, double b_low,
-                        double b_high, float b_intensity);
+  /// The rays and the bins' nearest crossings, by value (defined in rebin.cpp): crossRays() there.
+  struct Bins;
+  Bins bins();
   /// The segment (ax, ay) -> (bx, by) at bearings [rad]: offers every bin whose ray crosses it (found by
   /// bearing: for grids without running positions, and segments a quarter turn wide or more).
   inline void crossSegmentByBearing(double ax, double ay, double a_bearing, float a_intensity, double bx,
