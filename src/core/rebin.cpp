@@ -779,11 +779,15 @@ void ScanRebinner::traceContours(const Points& points, const BinSweep& sweep) {
 void ScanRebinner::writeNearestCrossings(float no_return, RebinnedScan& out) {
   const std::size_t bin_count = best_range_.size();
   out.ranges.resize(bin_count);
-  // Each bin read, written out and left empty for the next scan: no separate clearing pass.
+  // Each bin read, written out and left empty for the next scan: no separate clearing pass. A bin holds
+  // +inf or a finite range (offers keep only ranges below what it has), so "finite" is "below +inf";
+  // plain pointers, so nothing is loaded again after a store.
+  double* const best_range = best_range_.data();
+  float* const ranges = out.ranges.data();
   for (std::size_t b = 0; b < bin_count; ++b) {
-    const double range = best_range_[b];
-    out.ranges[b] = std::isfinite(range) ? static_cast<float>(range) : no_return;
-    best_range_[b] = kInfinity;
+    const double range = best_range[b];
+    ranges[b] = range < kInfinity ? static_cast<float>(range) : no_return;
+    best_range[b] = kInfinity;
   }
   if (with_intensities_) {
     out.intensities.resize(bin_count);
