@@ -304,6 +304,7 @@ struct ScanRebinner::Bins {
   const double* ray_sin;
   double* best_range;  // [m] per bin
   float* best_intensity;
+  const DeskewedPoint* points;  // the corrected points, for their intensities
   std::size_t bin_count;
   std::size_t ray_count;
   bool with_intensities;
@@ -311,10 +312,11 @@ struct ScanRebinner::Bins {
   /// The segment (ax, ay) -> (bx, by), less than a quarter turn wide, its ends at running positions
   /// a_ray and b_ray (with their side() values): offers the rays between them, and the ray at or before
   /// the earlier end and the one after the later end where that end lies on it (within the vertex
-  /// tolerance).
+  /// tolerance). Its intensity runs from point a_point's to point b_point's (read only where a bin
+  /// takes it).
   [[gnu::always_inline]] void crossRays(double ax, double ay, std::size_t a_ray, double a_low, double a_high,
-                                        float a_intensity, double bx, double by, std::size_t b_ray,
-                                        double b_low, double b_high, float b_intensity) const {
+                                        std::size_t a_point, double bx, double by, std::size_t b_ray,
+                                        double b_low, double b_high, std::size_t b_point) const {
     const double ex = bx - ax, ey = by - ay;
     const double numerator = cross(ax, ay, ex, ey);
     // The crossing of one ray, tested as crossSegmentByBearing tests it; u (= along / denominator) plainly
@@ -343,7 +345,8 @@ struct ScanRebinner::Bins {
       best_range[ray] = range;
       if (with_intensities) {
         const double u = along / denominator;
-        best_intensity[ray] = static_cast<float>((1.0 - u) * a_intensity + u * b_intensity);
+        best_intensity[ray] =
+            static_cast<float>((1.0 - u) * points[a_point].intensity + u * points[b_point].intensity);
       }
     };
     // Rays strictly between the two positions cross the segment; the ray at or before the earlier point
@@ -380,9 +383,9 @@ struct ScanRebinner::Bins {
   }
 };
 
-ScanRebinner::Bins ScanRebinner::bins() {
-  return {ray_cos_.data(),    ray_sin_.data(), best_range_.data(), best_intensity_.data(),
-          best_range_.size(), ray_count_,      with_intensities_};
+ScanRebinner::Bins ScanRebinner::bins(const Points& points) {
+  return {ray_cos_.data(), ray_sin_.data(),    best_range_.data(), best_intensity_.data(),
+          points.data(),   best_range_.size(), ray_count_,         with_intensities_};
 }
 
 void ScanRebinner::updateRays(const AngleGrid& grid) {
@@ -693,7 +696,7 @@ void ScanRebinner::traceContours(const Points& points, const BinSweep& sweep) {
   const PointState* const point = point_.data();
   Link* const link = link_.data();
   const bool running = running_;
-  const Bins bins = this->bins();
+  const Bins bins = this->bins(points);
   bool left_continues = false;  // the link of j - 1 (resolved) continues a contour
   // One pass over the links in order (so the nearest crossing of a bin is chosen as before when two are
   // equally near); the points where a contour ends are noted on the way and traced after every link.
@@ -711,17 +714,16 @@ void ScanRebinner::traceContours(const Points& points, const BinSweep& sweep) {
       // A segment (a chord longer than 2 kGuessBudget: its surface cannot be told, left empty). Less than
       // a quarter turn wide (so not through the sensor): by running bin positions.
       // (0 in a scan without intensities: read, never used)
-      const float a_intensity = intensity(j), b_intensity = intensity(q);
       const double ax = point[j].x, ay = point[j].y, bx = point[q].x, by = point[q].y;
       if (running && ax * bx + ay * by > 0.0 && point[j].position != kUnknown &&
           point[q].position != kUnknown) {
-        bins.crossRays(ax, ay, point[j].position, point[j].side_low, point[j].side_high, a_intensity, bx, by,
-                       point[q].position, point[q].side_low, point[q].side_high, b_intensity);
+        bins.crossRays(ax, ay, point[j].position, point[j].side_low, point[j].side_high, j, bx, by,
+                       point[q].position, point[q].side_low, point[q].side_high, q);
       } else {
-        crossSegmentByBearing(ax, ay, bearingOf(j), a_intensity, bx, by, bearingOf(q), b_intensity, sweep);
+        crossSegmentByBearing(ax, ay, bearingOf(j), intensity(j), bx, by, bearingOf(q), intensity(q), sweep);
       }
     } else if (kind == Link::kCorner) {
-      crossCorner(j, q, intensity(j), intensity(q), sweep);
+      crossCorner(points, j, q, sweep);
     } else if (kind == Link::kStep) {
       // The far contour's end segment continued behind the near point, over the bearings between.
       const bool far_is_next = rangeOf(q) > rangeOf(j);
@@ -854,19 +856,19 @@ bool ScanRebinner::findCorner(std::size_t a0, std::size_t a, std::size_t b, std:
   return to_a2 <= 4.0 * chord2 && to_b2 <= 4.0 * chord2;  // plausibly near both
 }
 
-void ScanRebinner::crossCorner(std::size_t j, std::size_t q, float j_intensity, float q_intensity,
-                               const BinSweep& sweep) {
+void ScanRebinner::crossCorner(const Points& points, std::size_t j, std::size_t q, const BinSweep& sweep) {
+  const float j_intensity = points[j].intensity, q_intensity = points[q].intensity;
   const double cx = corner_x_[j], cy = corner_y_[j];
   if (running_ && point_[j].x * cx + point_[j].y * cy > 0.0 && cx * point_[q].x + cy * point_[q].y > 0.0 &&
       point_[j].position != kUnknown && point_[q].position != kUnknown) {
     double low = 0.0, high = 0.0;
     const std::size_t corner = rays().locate(cx, cy, point_[j].position, low, high);
     if (corner != kUnknown) {
-      const Bins bins = this->bins();
-      bins.crossRays(point_[j].x, point_[j].y, point_[j].position, point_[j].side_low, point_[j].side_high,
-                     j_intensity, cx, cy, corner, low, high, j_intensity);
-      bins.crossRays(cx, cy, corner, low, high, q_intensity, point_[q].x, point_[q].y, point_[q].position,
-                     point_[q].side_low, point_[q].side_high, q_intensity);
+      const Bins bins = this->bins(points);
+      bins.crossRays(point_[j].x, point_[j].y, point_[j].position, point_[j].side_low, point_[j].side_high, j,
+                     cx, cy, corner, low, high, j);
+      bins.crossRays(cx, cy, corner, low, high, q, point_[q].x, point_[q].y, point_[q].position,
+                     point_[q].side_low, point_[q].side_high, q);
       return;
     }
   }

@@ -142,11 +142,10 @@ class ScanRebinner {
   struct Rays;
   Rays rays() const;
   /// A kCorner link j -> q: the two segments through its corner.
-  inline void crossCorner(std::size_t j, std::size_t q, float j_intensity, float q_intensity,
-                          const BinSweep& sweep);
+  inline void crossCorner(const Points& points, std::size_t j, std::size_t q, const BinSweep& sweep);
   /// The rays and the bins' nearest crossings, by value (defined in rebin.cpp): crossRays() there.
   struct Bins;
-  Bins bins();
+  Bins bins(const Points& points);
   /// The segment (ax, ay) -> (bx, by) at bearings [rad]: offers every bin whose ray crosses it (found by
   /// bearing: for grids without running positions, and segments a quarter turn wide or more).
   inline void crossSegmentByBearing(double ax, double ay, double a_bearing, float a_intensity, double bx,
