@@ -738,7 +738,7 @@ void ScanRebinner::traceContours(const Points& points, const BinSweep& sweep) {
     // link of j - 1 that continues a contour joins it to j.
     const bool right_continues = continues(kind);
     if (j > 0 && !(left_continues && right_continues))
-      ends_.push_back(j);
+      ends_.push_back(std::size_t{j});  // a copy: j's own address never taken, so it stays in a register
     left_continues = right_continues;
   }
   if (point_count > 0) {

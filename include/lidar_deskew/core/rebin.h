@@ -136,8 +136,6 @@ class ScanRebinner {
   /// Whether the corner of the line through (a0, a) and the line through (b, b1) lies between a and b.
   inline bool findCorner(std::size_t a0, std::size_t a, std::size_t b, std::size_t b1, double& corner_x,
                          double& corner_y) const;
-  /// The ray after `ray` and the one before it, the rays taken round (the last ray's next is the first).
-  std::size_t nextRay(std::size_t ray) const { return ray + 1 == ray_count_ ? 0 : ray + 1; }
   /// The rays for running bin positions, by value (defined in rebin.cpp): locate() and walk() there.
   struct Rays;
   Rays rays() const;
