@@ -177,6 +177,8 @@ constexpr int kMaxWalk = 16;
 /// (or wider than a turn) are swept by bearing instead.
 constexpr double kMaxRunningRays = 1 << 16;
 constexpr std::size_t kUnknown = static_cast<std::size_t>(-1);
+/// Rays::locate() reads up to this many rays past its hint (the last ray at most).
+constexpr std::size_t kRayPadding = 3;
 /// A quantity decided by a squared comparison is decided exactly (as sqrt and division would) when it is
 /// this close, relatively, to its threshold.
 constexpr double kSquaredMargin = 1e-9;
@@ -236,22 +238,21 @@ struct ScanRebinner::Rays {
     // A scan that turned with the sensor spreads its points over more than its grid, so every few points
     // one lies a ray further: three, where walk() from the hint would go forward too (the point on or past
     // the hint's ray) and so find the same.
-    const std::size_t after_hint = next(hint);
-    const double at_next = side(after_hint, px, py);
+    // The ray arrays go on for kRayPadding rays past the last (copies of the first), so the rays after
+    // the hint are read without taking them round; only a position returned is.
+    const double at_next = side(hint + 1, px, py);
     if (at_next >= 0.0) {
-      const std::size_t after = next(after_hint);
-      const double at_after = side(after, px, py);
+      const double at_after = side(hint + 2, px, py);
       if (at_after < 0.0) {
         low = at_next;
         high = at_after;
-        return after_hint;
+        return next(hint);
       }
-      const std::size_t further = next(after);
-      const double at_further = side(further, px, py);
+      const double at_further = side(hint + 3, px, py);
       if (at_further < 0.0 && side(hint, px, py) >= 0.0) {
         low = at_after;
         high = at_further;
-        return after;
+        return next(next(hint));
       }
     } else {
       const double at = side(hint, px, py);
@@ -406,14 +407,18 @@ void ScanRebinner::updateRays(const AngleGrid& grid) {
   direction_ = grid.angle_increment < 0.0f ? -1.0 : 1.0;
   ray_cos_.resize(ray_count_);
   ray_sin_.resize(ray_count_);
-  side_cos_.resize(ray_count_);
-  side_sin_.resize(ray_count_);
+  side_cos_.resize(ray_count_ + kRayPadding);
+  side_sin_.resize(ray_count_ + kRayPadding);
   for (std::size_t b = 0; b < ray_count_; ++b) {
     const double angle = static_cast<double>(grid.angle_min) + static_cast<double>(b) * grid.angle_increment;
     ray_cos_[b] = std::cos(angle);
     ray_sin_[b] = std::sin(angle);
     side_cos_[b] = direction_ * ray_cos_[b];
     side_sin_[b] = direction_ * ray_sin_[b];
+  }
+  for (std::size_t b = ray_count_; b < ray_count_ + kRayPadding && ray_count_ > 0; ++b) {
+    side_cos_[b] = side_cos_[b % ray_count_];
+    side_sin_[b] = side_sin_[b % ray_count_];
   }
   // Every bin starts with no crossing; writeNearestCrossings() leaves them so for the next scan.
   best_range_.assign(grid.count, kInfinity);
