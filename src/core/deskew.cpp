@@ -82,6 +82,7 @@ void KnotTrajectory::build(TimeNs origin, double span_begin, double span_end, Ti
   }
   if (!(span_end >= span_begin))
     throw InvalidInput("time_offset", "span end before span begin");
+  affine_maps_ = false;  // until prepareAffineMaps() on these segments
 
   // Knot times: both ends and the source's own sample times; and every knot_interval between unless
   // the source's sample times are all there is to its motion (then they reproduce it exactly), or it
@@ -171,7 +172,6 @@ void KnotTrajectory::build(TimeNs origin, double span_begin, double span_end, Ti
       segment.translation_step.setZero();
     }
   }
-  affine_maps_ = false;
   hint_ = 0;
 }
 
