@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Instructions per scan of the whole per-scan path (bench/run.sh scan's scan_path), counted by callgrind:
-# repeatable on a busy machine, where times are not. Builds bench_tf (Release) like bench/run.sh, runs
+# repeatable on a busy machine, where times are not. Builds bench_tf (bench/build.sh), runs
 # exactly $ITERATIONS scans of one sensor under callgrind (the scans cycle through a 10 s recording, as in
 # bench/run.sh scan), and prints the instructions per scan of the path and of the functions that cost most.
 #   bash bench/profile.sh [UTM-30LX|ILD26TRI|LDS-01]   (default LDS-01; ITERATIONS=500)
@@ -9,11 +9,7 @@ export PATH=/usr/bin:/bin:$PATH
 repo=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 sensor=${1:-LDS-01}
 iterations=${ITERATIONS:-500}
-bash "$repo/scripts/install_deps.sh" >/dev/null
-build="$repo/.build/bench"
-cmake -S "$repo" -B "$build" -DCMAKE_BUILD_TYPE=Release -DCATKIN_ENABLE_TESTING=OFF >/dev/null
-cmake --build "$build" --target bench_tf -j"${LIDAR_DESKEW_JOBS:-2}" >/dev/null
-bench=$(find "$build" -type f -name bench_tf -perm -u+x | head -n 1)
+bench=$(bash "$repo/bench/build.sh" bench_tf)
 out=$(mktemp -d)
 trap 'rm -rf "$out"' EXIT
 # Counted: ScanProcessor's prepare and correct (the message checked, corrected, re-binned, the outputs
@@ -26,6 +22,7 @@ callgrind_annotate --inclusive=yes "$out/callgrind.out" 2>/dev/null |
   awk -v n="$iterations" -v sensor="$sensor" '
     /PROGRAM TOTALS/ { gsub(",", "", $1); printf "%s: %.0f instructions per scan (%d scans)\n\n", sensor, $1 / n, n; next }
     /ScanProcessor::|TwistMotion::|KnotTrajectory::|ScanRebinner::|toCloud|lookupTransform|kthSmallest|se3|malloc$|free$/ {
-      count = $1; gsub(",", "", count); name = $0; sub(/^[^?]*\?\?\?:/, "", name); sub(/^[^:]*:/, "", name)
-      sub(/\(.*$/, "", name); if (seen[name]++) next
+      count = $1; gsub(",", "", count); name = $0; sub(/^[^?]*\?\?\?:/, "", name)
+      gsub(/\(anonymous namespace\)::/, "", name); sub(/^lidar_deskew::/, "", name); sub(/\(.*$/, "", name)
+      if (seen[name]++) next
       printf "%10.0f  %s\n", count / n, name }' | head -n 30

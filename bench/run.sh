@@ -15,9 +15,5 @@ if [ "$name" = scan ]; then  # part of bench_tf: the same recordings and tf buff
   export LIDAR_DESKEW_BENCH_NO_ACCURACY=1
   set -- --benchmark_filter='^(scan_path|laser_geometry)/' "$@"
 fi
-bash "$repo/scripts/install_deps.sh" >/dev/null
-build="$repo/.build/bench"
-cmake -S "$repo" -B "$build" -DCMAKE_BUILD_TYPE=Release -DCATKIN_ENABLE_TESTING=OFF >/dev/null
-cmake --build "$build" --target "bench_$name" -j"${LIDAR_DESKEW_JOBS:-2}" >/dev/null
-bench=$(find "$build" -type f -name "bench_$name" -perm -u+x | head -n 1)
+bench=$(bash "$repo/bench/build.sh" "bench_$name")
 taskset -c 0 "$bench" --benchmark_min_time=0.5 --benchmark_repetitions=5 --benchmark_report_aggregates_only=true "$@"
