@@ -8,6 +8,7 @@
 #include <limits>
 #include <type_traits>
 
+
 #include "lidar_deskew/ros/cloud_azimuth.h"
 #include "lidar_deskew/ros/conversions.h"
 #include "lidar_deskew/ros/scan_processor.h"
@@ -182,15 +183,14 @@ void readReturns(const sensor_msgs::PointCloud2& cloud, const Coordinates& xyz, 
   prepared.firings.of_point.resize(std::is_void_v<TimeType> ? 0 : returns);
 }
 
-/// Writes each return's corrected position (x y z of type T) at its byte offset in `output`, and
-/// `time_value` into its time field (of type TimeType; none for void).
+/// Writes returns [begin, end)'s corrected positions (x y z of type T) at their byte offsets in
+/// `data` (the output's), and `time_value` into their time field (of type TimeType; none for void).
 template <typename T, typename TimeType>
 void writeReturns(const Coordinates& xyz, std::uint32_t time_offset, double time_value,
-                  const std::vector<std::uint32_t>& byte_offsets,
-                  const std::vector<Eigen::Vector3d>& corrected, sensor_msgs::PointCloud2& output) {
-  std::uint8_t* const data = output.data.data();
+                  const std::uint32_t* byte_offsets, const Eigen::Vector3d* corrected, std::size_t begin,
+                  std::size_t end, std::uint8_t* data) {
   const std::uint32_t x = xyz.x.offset, y = xyz.y.offset, z = xyz.z.offset;
-  for (std::size_t k = 0; k < corrected.size(); ++k) {
+  for (std::size_t k = begin; k < end; ++k) {
     std::uint8_t* const point = data + byte_offsets[k];
     store(point + x, static_cast<T>(corrected[k].x()));
     store(point + y, static_cast<T>(corrected[k].y()));
@@ -200,24 +200,20 @@ void writeReturns(const Coordinates& xyz, std::uint32_t time_offset, double time
   }
 }
 
-/// Scales each return's `range` field (of type T, any unit) by the ratio of its corrected position's
-/// distance from the sensor to its raw one: the range of the corrected point, in the driver's unit and
-/// from the driver's own origin (Ouster's beam origin lies a few cm from the sensor frame's: a still
-/// sensor's ranges stay as they were). Integers are rounded; values kept within their type; a value that is
-/// not finite, or would not be, is left as it was.
+/// Scales returns [begin, end)'s `range` field (of type T, any unit, at `range_offset` in `data`, the
+/// output's) by the ratio of the corrected position's distance from the sensor to the raw one's: the
+/// range of the corrected point, in the driver's unit and from the driver's own origin (Ouster's beam
+/// origin lies a few cm from the sensor frame's: a still sensor's ranges stay as they were). Integers are
+/// rounded; values kept within their type; a value that is not finite, or would not be, is left as it was.
 template <typename T>
-void scaleRanges(std::uint32_t range_offset, const std::vector<std::uint32_t>& byte_offsets,
-                 const std::vector<Eigen::Vector3d>& raw, const std::vector<Eigen::Vector3d>& corrected,
-                 sensor_msgs::PointCloud2& output) {
-  std::uint8_t* const data = output.data.data();
-  for (std::size_t k = 0; k < corrected.size(); ++k) {
+void scaleRanges(std::uint32_t range_offset, const std::uint32_t* byte_offsets, const Eigen::Vector3d* raw,
+                 const Eigen::Vector3d* corrected, std::size_t begin, std::size_t end, std::uint8_t* data) {
+  for (std::size_t k = begin; k < end; ++k) {
     std::uint8_t* const at = data + byte_offsets[k] + range_offset;
-    const double scaled = static_cast<double>(load<T>(at)) * corrected[k].norm() / raw[k].norm();
-    if (!std::isfinite(scaled))
-      continue;  // (a non-finite value, or a non-finite correction: left as it was)
-    const double value = std::is_integral_v<T> ? std::round(scaled) : scaled;
-    store(at, static_cast<T>(std::clamp(value, static_cast<double>(std::numeric_limits<T>::lowest()),
-                                        static_cast<double>(std::numeric_limits<T>::max()))));
+    const double corrected_norm = corrected[k].norm(), raw_norm = raw[k].norm();
+    const double scaled = static_cast<double>(load<T>(at)) * corrected_norm / raw_norm;
+    if (std::isfinite(scaled))  // (a non-finite value, or a non-finite correction: left as it was)
+      store(at, toFieldValue<T>(scaled));
   }
 }
 
@@ -354,26 +350,35 @@ CloudOutputs CloudProcessor::correct(const PreparedCloud& prepared, const mrpt::
     time_value = static_cast<double>(reference / unit_ns) +
                  static_cast<double>(reference % unit_ns) / static_cast<double>(unit_ns);
   }
-  xyz.withType([&](auto coordinate) {
-    using T = decltype(coordinate);
-    if (prepared.byAzimuth()) {  // no field to rewrite
-      writeReturns<T, void>(xyz, 0, 0.0, prepared.byte_offsets, corrected_, *output);
-      return;
-    }
-    withFieldType(time.datatype, [&](auto typed) {
-      writeReturns<T, decltype(typed)>(xyz, time.offset, time_value, prepared.byte_offsets, corrected_,
-                                       *output);
-    });
-  });
   // A field that depends on x y z: Ouster's range.
   const PointField* const range =
       separateField(input, "range",
                     {&xyz.x, &xyz.y, &xyz.z, prepared.byAzimuth() ? nullptr : fieldNamed(input, time.name)});
-  if (range != nullptr) {
-    withFieldType(range->datatype, [&](auto typed) {
-      scaleRanges<decltype(typed)>(range->offset, prepared.byte_offsets, prepared.points, corrected_,
-                                   *output);
+  // Written a block of returns at a time, their ranges scaled while its lines are still in cache: one
+  // pass over the output (a second pass for the ranges cost as much as the first).
+  constexpr std::size_t kBlock = 256;
+  std::uint8_t* const data = output->data.data();
+  const std::uint32_t* const byte_offsets = prepared.byte_offsets.data();
+  const Eigen::Vector3d* const corrected = corrected_.data();
+  for (std::size_t begin = 0; begin < corrected_.size(); begin += kBlock) {
+    const std::size_t end = std::min(begin + kBlock, corrected_.size());
+    xyz.withType([&](auto coordinate) {
+      using T = decltype(coordinate);
+      if (prepared.byAzimuth()) {  // no field to rewrite
+        writeReturns<T, void>(xyz, 0, 0.0, byte_offsets, corrected, begin, end, data);
+        return;
+      }
+      withFieldType(time.datatype, [&](auto typed) {
+        writeReturns<T, decltype(typed)>(xyz, time.offset, time_value, byte_offsets, corrected, begin, end,
+                                         data);
+      });
     });
+    if (range != nullptr) {
+      withFieldType(range->datatype, [&](auto typed) {
+        scaleRanges<decltype(typed)>(range->offset, byte_offsets, prepared.points.data(), corrected, begin,
+                                     end, data);
+      });
+    }
   }
   CloudOutputs outputs;
   outputs.cloud = output;

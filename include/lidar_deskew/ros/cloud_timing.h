@@ -6,8 +6,11 @@
 #include <sensor_msgs/PointCloud2.h>
 #include <sensor_msgs/PointField.h>
 
+#include <algorithm>
 #include <cstdint>
+#include <limits>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 #include "lidar_deskew/core/types.h"
@@ -74,6 +77,29 @@ bool withFieldType(std::uint8_t datatype, Visit&& visit) {
       return visit(double{}), true;
   }
   return false;
+}
+
+/// A finite `value` as a field value of type T (a PointField datatype's): within T's range, and for an
+/// integer type rounded half away from zero first, as std::round does. Done inline (std::round is a
+/// libm call per value here): PointField's integers have at most 32 bits, so a value strictly between
+/// their bounds truncates exactly through int64, and its fraction (value minus that) is exact.
+template <typename T>
+T toFieldValue(double value) {
+  constexpr double lowest = static_cast<double>(std::numeric_limits<T>::lowest());
+  constexpr double highest = static_cast<double>(std::numeric_limits<T>::max());
+  if constexpr (std::is_integral_v<T>) {
+    static_assert(sizeof(T) <= 4, "PointField integers have at most 32 bits");
+    if (value >= highest)
+      return std::numeric_limits<T>::max();
+    if (value <= lowest)
+      return std::numeric_limits<T>::lowest();
+    auto whole = static_cast<std::int64_t>(value);
+    const double fraction = value - static_cast<double>(whole);
+    whole += static_cast<std::int64_t>(fraction >= 0.5) - static_cast<std::int64_t>(fraction <= -0.5);
+    return static_cast<T>(whole);
+  } else {
+    return static_cast<T>(std::clamp(value, lowest, highest));
+  }
 }
 
 /// Bytes of a value of a PointField datatype; 0 for an unknown one.
