@@ -8,7 +8,6 @@
 #include <limits>
 #include <type_traits>
 
-
 #include "lidar_deskew/ros/cloud_azimuth.h"
 #include "lidar_deskew/ros/conversions.h"
 #include "lidar_deskew/ros/scan_processor.h"
@@ -210,8 +209,7 @@ void scaleRanges(std::uint32_t range_offset, const std::uint32_t* byte_offsets, 
                  const Eigen::Vector3d* corrected, std::size_t begin, std::size_t end, std::uint8_t* data) {
   for (std::size_t k = begin; k < end; ++k) {
     std::uint8_t* const at = data + byte_offsets[k] + range_offset;
-    const double corrected_norm = corrected[k].norm(), raw_norm = raw[k].norm();
-    const double scaled = static_cast<double>(load<T>(at)) * corrected_norm / raw_norm;
+    const double scaled = static_cast<double>(load<T>(at)) * corrected[k].norm() / raw[k].norm();
     if (std::isfinite(scaled))  // (a non-finite value, or a non-finite correction: left as it was)
       store(at, toFieldValue<T>(scaled));
   }

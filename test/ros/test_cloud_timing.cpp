@@ -282,17 +282,21 @@ std::size_t fieldValueMismatches(const std::vector<double>& values) {
 }
 
 TEST(CloudTiming, FieldValuesAreRoundedAndClampedAsStdRoundDoes) {
-  std::vector<double> values = {0.0, -0.0, 0.5, -0.5, 1.5, -1.5, 2.5, -2.5, 0.49999999999999994,
-                                -0.49999999999999994, 4503599627370495.5, 4503599627370497.0, 1e300, -1e300,
-                                std::numeric_limits<double>::denorm_min(), -std::numeric_limits<double>::denorm_min(),
-                                std::numeric_limits<double>::max(), std::numeric_limits<double>::lowest()};
+  using limits = std::numeric_limits<double>;
+  std::vector<double> values;
+  for (const double special : {0.0, 0.49999999999999994, 4503599627370495.5, 4503599627370497.0, 1e300,
+                               limits::denorm_min(), limits::max()}) {
+    values.push_back(special);
+    values.push_back(-special);
+  }
   const auto around = [&values](double centre) {
     values.push_back(centre);
     values.push_back(std::nextafter(centre, -HUGE_VAL));
     values.push_back(std::nextafter(centre, HUGE_VAL));
   };
   for (const double bound : {128.0, 256.0, 32768.0, 65536.0, 2147483648.0, 4294967296.0}) {
-    for (const double edge : {bound, -bound, bound - 1.0, -bound - 1.0, bound - 0.5, -bound - 0.5, bound + 0.5})
+    for (const double edge :
+         {bound, -bound, bound - 1.0, -bound - 1.0, bound - 0.5, -bound - 0.5, bound + 0.5})
       around(edge);
   }
   for (int k = -3000; k <= 3000; ++k) {
