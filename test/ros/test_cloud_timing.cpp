@@ -296,12 +296,12 @@ TEST(CloudTiming, FieldValuesAreRoundedAndClampedAsStdRoundDoes) {
   };
   for (const double bound : {128.0, 256.0, 32768.0, 65536.0, 2147483648.0, 4294967296.0}) {
     for (const double edge :
-         {bound, -bound, bound - 1.0, -bound - 1.0, bound - 0.5, -bound - 0.5, bound + 0.5})
+         {bound, -bound, bound - 1.0, -bound - 1.0, bound - 0.5, -bound + 0.5, -bound - 0.5, bound + 0.5})
       around(edge);
   }
   for (int k = -3000; k <= 3000; ++k) {
     around(k + 0.5);
-    around(k * 1.37 + 0.5);  // halves of larger values too
+    around(k * 137.0 + 0.5);  // halves of larger values too
     around(k * 1'431'655.0 + 0.5);
   }
   std::mt19937_64 random(25);
