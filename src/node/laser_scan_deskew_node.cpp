@@ -362,12 +362,7 @@ void DeskewNode<Processor>::tfCallback(const tf2_msgs::TFMessage::ConstPtr& mess
     pipeline_.addTransforms(message->transforms, is_static, waitClock(arrival));
     // A scan the timing check holds until tf covers every alternative timing.
     if (timing_check_ && timing_check_->waiting() && timingCheckAffordable()) {
-      const double before = check_cpu_;
-      {
-        const CpuSpent checking(check_cpu_);
-        timing_check_->tryPending(pipeline_.tf().motion());
-      }
-      largest_check_cpu_ = std::max(0.9 * largest_check_cpu_, check_cpu_ - before);
+      timeCheck([&] { timing_check_->tryPending(pipeline_.tf().motion()); });
     }
   } catch (const std::exception& error) {  // never let an exception reach the manager
     ROS_ERROR_THROTTLE(1.0, "%s: error handling tf: %s", name_.c_str(), error.what());
@@ -470,6 +465,17 @@ void DeskewNode<Processor>::publish(const typename Pipeline::Result& result) {
 }
 
 template <class Processor>
+template <class Check>
+void DeskewNode<Processor>::timeCheck(Check&& check) {
+  const double before = check_cpu_;
+  {
+    const CpuSpent spent(check_cpu_);
+    check();
+  }
+  largest_check_cpu_ = std::max(0.9 * largest_check_cpu_, check_cpu_ - before);
+}
+
+template <class Processor>
 bool DeskewNode<Processor>::timingCheckAffordable() const {
   // Within budget after one more check costing kTimingCheckHeadroom times the costliest of late (the
   // largest, decaying by a tenth a check). Checks vary: the last one's cost alone let the share creep
@@ -488,16 +494,13 @@ void DeskewNode<Processor>::checkTiming(const typename Processor::Prepared& prep
   if constexpr (std::is_same_v<Processor, ros_adapter::ScanProcessor>) {
     if (!timing_check_ || !timingCheckAffordable())
       return;
-    const double before = check_cpu_;
-    {
-      const CpuSpent spent(check_cpu_);
+    timeCheck([&] {
       try {
         timing_check_->add(prepared.scan, mount, pipeline_.tf().motion());
       } catch (const std::exception& error) {  // the scan is published already: only the check loses
         ROS_ERROR_THROTTLE(10.0, "%s: timing check: %s", name_.c_str(), error.what());
       }
-    }
-    largest_check_cpu_ = std::max(0.9 * largest_check_cpu_, check_cpu_ - before);
+    });
   }
 }
 

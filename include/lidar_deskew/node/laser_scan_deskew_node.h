@@ -81,8 +81,13 @@ class DeskewNode {
   void report(ros_adapter::PipelineEvent event, const std::string& text);
   void produceDiagnostics(diagnostic_updater::DiagnosticStatusWrapper& status);
   void produceTimingDiagnostics(diagnostic_updater::DiagnosticStatusWrapper& status);
-  /// Whether one more timing check, costing what the last did, stays within 5 % of the callbacks' CPU.
+  /// Whether one more timing check, costing three times the costliest of late, stays within 5 % of the
+  /// callbacks' CPU.
   bool timingCheckAffordable() const;
+  /// Runs `check` (the timing check's work), adding its CPU time to check_cpu_ and keeping the costliest
+  /// check of late.
+  template <class Check>
+  void timeCheck(Check&& check);
   /// Feeds the timing check with a corrected sweep when its CPU budget allows (scans only).
   void checkTiming(const typename Processor::Prepared& prepared, const mrpt::poses::CPose3D& mount);
   double latencyP99Locked() const;
