@@ -721,9 +721,10 @@ bool TimingCheck::tryPending(const MotionSource& motion) {
   std::vector<std::pair<std::string, TimingConfig>> timings;
   Entry entry;
   entry.time = scan.stamp;
+  TimeNs begin = std::numeric_limits<TimeNs>::min();  // [ns] the configured sweep's first beam
   try {
     const BeamTiming beams = resolveTiming(scan, configured_);
-    const TimeNs begin = beams.earliestBeamTime();
+    begin = beams.earliestBeamTime();
     const TimeNs end = std::max(beams.latestBeamTime(), begin + 1);
     const double sweep = nsToSeconds(end - begin);
     const auto flipStamp = [](TimingConfig timing) {
@@ -763,10 +764,14 @@ bool TimingCheck::tryPending(const MotionSource& motion) {
       entry.placed.push_back(placeCorrected(corrected_, motion.basePose(corrected_.reference_time) + mount,
                                             std::abs(static_cast<double>(scan.angle_increment)), stride));
     }
-  } catch (const MotionUnavailable&) {
-    // Not yet covered: it waits for later tf, unless a newer scan behind it already is (then tf will
-    // never cover it: it is left out).
-    if (pending_.size() > 1 && pending_.back().scan.stamp - scan.stamp > secondsToNs(1.0))
+  } catch (const MotionUnavailable& error) {
+    // Not yet covered: it waits for later tf, unless tf will never cover it, and then it is left out:
+    // - a time at or before the configured sweep's start is missing (tf covered that sweep when the scan
+    //   was corrected, so it has dropped it since: tf keeps a limited past, and a scan that waited
+    //   while the check's budget let no attempt through would otherwise block the check for good);
+    // - a newer scan waits behind it already.
+    if (error.time() <= begin ||
+        (pending_.size() > 1 && pending_.back().scan.stamp - scan.stamp > secondsToNs(1.0)))
       pending_.pop_front();
     return false;
   } catch (const InvalidInput&) {

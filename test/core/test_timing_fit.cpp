@@ -267,5 +267,43 @@ TEST(TimingCheck, NamesTheBetterTimingOrSaysItFits) {
   EXPECT_EQ(none.pairs, 0u);
 }
 
+/// tf keeps a limited past: a scan that waited for later tf while its own sweep dropped out of tf can never
+/// be checked, and must not keep the check waiting (the node only tries it when its CPU budget lets it).
+TEST(TimingCheck, LetsGoOfAScanWhoseSweepTfNoLongerCovers) {
+  Drive drive;
+  drive.duration = 2.0;
+  const double sweep = 359.0 / 360.0 / drive.lidar.rate;
+  const Recording at_end = record(drive, sweep, false, 1.0);
+  TimingConfig end;
+  end.stamp_at = StampAt::kEnd;  // the "start" alternative needs tf a sweep past the last beam
+  const PlanarScan& scan = at_end.scans.at(3);
+  const BeamTiming beams = resolveTiming(scan, end);
+  const auto samples = [&](TimeNs from, TimeNs until) {
+    PoseSamples tf;
+    for (TimeNs t = from; t <= until; t += secondsToNs(0.02)) {
+      const sim::Pose2 pose = drive.trajectory.pose(nsToSeconds(t - kEpoch));
+      tf.add(t, mrpt::poses::CPose2D(pose.x, pose.y, pose.yaw));
+    }
+    return tf;
+  };
+  TimingCheck check(end);
+  // Covered under the configured timing only: it waits.
+  const PoseSamples now = samples(kEpoch, beams.latestBeamTime() + secondsToNs(0.02));
+  EXPECT_FALSE(check.add(scan, at_end.mount, now));
+  EXPECT_TRUE(check.waiting());
+  // Later tf that still lacks the sweep's end: it still waits.
+  EXPECT_FALSE(check.tryPending(samples(beams.earliestBeamTime(), beams.latestBeamTime())));
+  EXPECT_TRUE(check.waiting());
+  // tf has moved on past the sweep's start (its cache dropped it): let go, with nothing counted.
+  const TimeNs later = beams.earliestBeamTime() + secondsToNs(0.05);
+  EXPECT_FALSE(check.tryPending(samples(later, later + secondsToNs(1.0))));
+  EXPECT_FALSE(check.waiting());
+  EXPECT_EQ(check.scans(), 0u);
+  // With the whole span covered it would have been checked.
+  TimingCheck fresh(end);
+  EXPECT_TRUE(fresh.add(scan, at_end.mount, samples(kEpoch, beams.latestBeamTime() + secondsToNs(0.5))));
+  EXPECT_EQ(fresh.scans(), 1u);
+}
+
 }  // namespace
 }  // namespace lidar_deskew::core

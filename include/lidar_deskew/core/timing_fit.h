@@ -237,7 +237,9 @@ class TimingCheck {
   /// the last beam): now, or at a later add() or tryPending(); at most 3 wait. Returns true when a scan
   /// was used (at most one per call).
   bool add(const PlanarScan& scan, const mrpt::poses::CPose3D& mount, const MotionSource& motion);
-  /// Uses the waiting scan if `motion` now covers it (call when tf arrives). Returns true when used.
+  /// Uses the waiting scan if `motion` now covers it (call when tf arrives). Returns true when used. A
+  /// scan `motion` will never cover is left out: one whose configured sweep's start it no longer covers
+  /// (tf keeps a limited past), or one with a scan more than 1 s newer waiting behind it.
   bool tryPending(const MotionSource& motion);
   bool waiting() const { return !pending_.empty(); }
   Verdict verdict() const;
