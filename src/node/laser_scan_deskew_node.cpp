@@ -468,23 +468,25 @@ template <class Processor>
 template <class Check>
 void DeskewNode<Processor>::timeCheck(Check&& check) {
   const double before = check_cpu_;
+  const std::size_t used_before = timing_check_->scans();
   {
     const CpuSpent spent(check_cpu_);
     check();
   }
-  largest_check_cpu_ = std::max(0.9 * largest_check_cpu_, check_cpu_ - before);
+  // The costliest of late decays by a tenth a check that used a scan. An attempt on a scan that tf does
+  // not cover yet (with stamp_at: end, one per tf message while a scan waits) is cheap and does not wear
+  // it down: it would let a real check by at a fraction of its cost.
+  const bool used = timing_check_->scans() > used_before;
+  largest_check_cpu_ = std::max(used ? 0.9 * largest_check_cpu_ : largest_check_cpu_, check_cpu_ - before);
 }
 
 template <class Processor>
 bool DeskewNode<Processor>::timingCheckAffordable() const {
-  // Within budget after one more check costing kTimingCheckHeadroom times the costliest of late (the
-  // largest, decaying by a tenth a check). Checks vary: the last one's cost alone let the share creep
-  // over the budget by a few hundredths of a point under load, the costliest one's by half a point right
-  // after a check twice the costliest before it (a short run, where one check is a tenth of the budget).
-  // The first check, its cost unknown, is taken on the first scan. An attempt on a scan that tf does not
-  // cover yet (with stamp_at: end, one per tf message while a scan waits) is cheap and wears the estimate
-  // down; letting only checks that used a scan decay it spent the budget on those attempts all the same
-  // and delayed timing_check_end_configured's verdict from 70-100 s of driving to 130-240 s or never.
+  // Within budget after one more check costing kTimingCheckHeadroom times the costliest of late
+  // (timeCheck). Checks vary: the last one's cost alone let the share creep over the budget by a few
+  // hundredths of a point under load, the costliest one's by half a point right after a check twice the
+  // costliest before it (a short run, where one check is a tenth of the budget). The first check, its
+  // cost unknown, is taken on the first scan.
   return check_cpu_ + kTimingCheckHeadroom * largest_check_cpu_ <= kTimingCheckBudget * callbacks_cpu_;
 }
 

@@ -124,7 +124,7 @@ class DeskewNode {
   std::unique_ptr<core::TimingCheck> timing_check_;
   double callbacks_cpu_ = 0.0;      // [s] thread CPU time in the node's callbacks, the check's included
   double check_cpu_ = 0.0;          // [s] of it in the timing check
-  double largest_check_cpu_ = 0.0;  // [s] the costliest check of late (decays by a tenth a check)
+  double largest_check_cpu_ = 0.0;  // [s] the costliest check of late (timeCheck)
   bool timing_reported_ = false;    // the timing status is on /diagnostics (the timer's alone)
   std::unique_ptr<Reconfigure> reconfigure_;
 };
