@@ -8,7 +8,7 @@ namespace lidar_deskew::sim {
 const std::vector<LaserDriver>& allLaserDrivers() {
   static const std::vector<LaserDriver> drivers = {
       LaserDriver::kRplidar, LaserDriver::kUrgNode, LaserDriver::kSickScan, LaserDriver::kHlsLfcdLds,
-      LaserDriver::kLdlidar, LaserDriver::kYdlidar, LaserDriver::kXv11};
+      LaserDriver::kLdlidar, LaserDriver::kYdlidar, LaserDriver::kXv11,     LaserDriver::kLd08};
   return drivers;
 }
 
@@ -28,6 +28,8 @@ std::string laserDriverName(LaserDriver driver) {
       return "ydlidar";
     case LaserDriver::kXv11:
       return "xv_11";
+    case LaserDriver::kLd08:
+      return "ld08";
   }
   throw std::invalid_argument("unknown LaserDriver");
 }
@@ -67,6 +69,8 @@ LidarModel driverLidar(LaserDriver driver) {
       return {"YDLIDAR-X4", 500, 2.0 * M_PI, 10.0, 0.02, false, 0.12f, 10.0f};
     case LaserDriver::kXv11:
       return {"XV-11", 360, 2.0 * M_PI, 5.0, 0.02, false, 0.06f, 5.0f};
+    case LaserDriver::kLd08:
+      return {"LDS-02", 460, 2.0 * M_PI, 5.0, 0.02, false, 0.16f, 8.0f};
   }
   throw std::invalid_argument("unknown LaserDriver");
 }
@@ -109,6 +113,10 @@ TimingFault driverTiming(LaserDriver driver, const LidarModel& lidar) {
       timing.zero_scan_time = true;
       break;
     }
+    case LaserDriver::kLd08:  // stamped at the latest beam, scan_time / (n - 1)
+      timing.stamp_error = lidar.sweepDuration();
+      timing.time_increment_factor = beams / (beams - 1.0);
+      break;
   }
   return timing;
 }

@@ -84,6 +84,10 @@ const Expected kExpected[] = {
     // xv_11_laser_driver: now() before poll() waits for the first packet; 64 rpm / 1e8; no scan_time.
     {LaserDriver::kXv11, false, atFirst,
      [](const sensor_msgs::LaserScan&, double period) { return 64.0 * (60.0 / period) / 1e8; }, zero},
+    // ld08_driver (LDS-02): now() when the frame is ready; scan_time / ((angle_max - angle_min) / inc).
+    {LaserDriver::kLd08, false, atLast,
+     [](const sensor_msgs::LaserScan& scan, double) { return scan.scan_time / (beams(scan) - 1.0); },
+     truePeriod},
 };
 
 void PrintTo(const Expected& expected, std::ostream* out) {

@@ -48,6 +48,12 @@
 //   (300 rpm), index order. header.stamp = ros::Time::now() before poll() waits for the revolution's
 //   first packet: its first beam. time_increment = the packets' mean speed field (64 x rpm) / 1e8 =
 //   64 rpm / 1e8 s, 0.3456 x the true 1 / (6 rpm) at 300 rpm; scan_time never set: 0.
+// - kLd08: ROBOTIS-GIT/ld08_driver main c54a8f3 (TurtleBot3 LDS-02), src/lipkg.cpp (frame at the
+//   angle's wrap, sorted by angle, l. 177-196; ToLaserscan l. 219-262) and src/main.cpp (l. 78-86).
+//   LDS-02: 460 beams (2300 Hz / 5 Hz), 360 deg, 5 Hz, 0.16-8 m, index order (the device's angle as it
+//   comes). header.stamp = now() when the 100 Hz loop finds the frame ready: the latest beam (0-10 ms
+//   later, not simulated). scan_time = 360 / speed, time_increment = scan_time / ((angle_max -
+//   angle_min) / angle_increment) = scan_time / (n - 1).
 //
 // Not simulated (geometry, not timing): RPLIDAR's and ldlidar's angle_increment = 2pi / (n - 1) over n
 // beams of one revolution; the link's latency (serial, USB, Ethernet), which deskew_calibrate measures.
@@ -60,11 +66,11 @@
 
 namespace lidar_deskew::sim {
 
-enum class LaserDriver { kRplidar, kUrgNode, kSickScan, kHlsLfcdLds, kLdlidar, kYdlidar, kXv11 };
+enum class LaserDriver { kRplidar, kUrgNode, kSickScan, kHlsLfcdLds, kLdlidar, kYdlidar, kXv11, kLd08 };
 
 /// Every driver, in the enum's order.
 const std::vector<LaserDriver>& allLaserDrivers();
-/// "rplidar", "urg_node", "sick_scan", "hls_lfcd_lds", "ldlidar", "ydlidar", "xv_11".
+/// "rplidar", "urg_node", "sick_scan", "hls_lfcd_lds", "ldlidar", "ydlidar", "xv_11", "ld08".
 std::string laserDriverName(LaserDriver driver);
 std::vector<std::string> laserDriverNames();
 /// The driver of that name; throws std::invalid_argument listing the names otherwise.
