@@ -131,12 +131,11 @@ TEST_P(DriverConventions, MessagesAsTheDriverWritesThemAndCalibrateFindsTheConve
   calibrate.input = stem + ".bag";
   const bag::Calibration calibration = bag::calibrateBag(calibrate);
   const core::TimingEstimate& estimate = calibration.estimate;
-  std::printf(
-      "%-13s first beam - stamp: truth %8.3f ms, estimate %8.3f +- %.3f ms; %s; period %.3f ms "
-      "(truth %.3f, %s)\n",
-      name.c_str(), truth.timeOffset() * 1e3, estimate.time_offset * 1e3, estimate.offset_sigma * 1e3,
-      estimate.timing.beam_order == core::BeamOrder::kReversed ? "reversed" : "as message",
-      estimate.period * 1e3, period * 1e3, estimate.period_estimated ? "estimated" : "message's");
+  // One row of docs/REAL_ROBOTS.md's table (scripts/driver_conventions.sh collects them).
+  std::printf("| %s | %.3f ms | %.3f ± %.3f ms | %s | %.3f ms (truth %.3f), %s |\n", name.c_str(),
+              truth.timeOffset() * 1e3, estimate.time_offset * 1e3, estimate.offset_sigma * 1e3,
+              estimate.timing.beam_order == core::BeamOrder::kReversed ? "reversed" : "as message",
+              estimate.period * 1e3, period * 1e3, estimate.period_estimated ? "estimated" : "the message's");
   ASSERT_TRUE(estimate.told) << estimate.why;
   ASSERT_TRUE(estimate.offset_told) << estimate.why;
   const double offset_error = estimate.time_offset - truth.timeOffset();
