@@ -76,6 +76,9 @@ LidarModel driverLidar(LaserDriver driver) {
 }
 
 TimingFault driverTiming(LaserDriver driver, const LidarModel& lidar) {
+  if (!(lidar.rate > 0.0) || !std::isfinite(lidar.rate) || lidar.beams < 2)
+    throw std::invalid_argument(laserDriverName(driver) +
+                                ": the lidar needs a finite rate > 0 and 2 beams or more");
   TimingFault timing;
   const double beams = lidar.beams;
   const double true_increment = static_cast<double>(lidar.timeIncrement());
@@ -106,8 +109,6 @@ TimingFault driverTiming(LaserDriver driver, const LidarModel& lidar) {
       timing.reversed = true;
       break;
     case LaserDriver::kXv11: {  // stamped at the first beam, time_increment 64 rpm / 1e8, no scan_time
-      if (!(lidar.rate > 0.0))
-        throw std::invalid_argument("xv_11: the lidar's rate must be > 0");
       const double rpm = 60.0 * lidar.rate;
       timing.time_increment_factor = 64.0 * rpm / 1e8 / true_increment;
       timing.zero_scan_time = true;

@@ -11,7 +11,9 @@
 
 #include <cmath>
 #include <cstdio>
+#include <iterator>
 #include <ostream>
+#include <stdexcept>
 
 #include "lidar_deskew/bag/bag_calibrate.h"
 #include "lidar_deskew/ros/conversions.h"
@@ -156,6 +158,21 @@ TEST_P(DriverConventions, MessagesAsTheDriverWritesThemAndCalibrateFindsTheConve
   EXPECT_NEAR(written_offset, truth.timeOffset(), 0.001);
   std::remove((stem + ".bag").c_str());
   std::remove((stem + ".truth").c_str());
+}
+
+TEST(DriverNames, RoundTripAndBadInputNamed) {
+  ASSERT_EQ(allLaserDrivers().size(), std::size(kExpected));  // every driver has its row above
+  for (const LaserDriver driver : allLaserDrivers())
+    EXPECT_EQ(laserDriverFromName(laserDriverName(driver)), driver);
+  try {
+    laserDriverFromName("rplidar_ros");
+    ADD_FAILURE() << "an unknown name was taken";
+  } catch (const std::invalid_argument& error) {
+    EXPECT_NE(std::string(error.what()).find("known: rplidar urg_node"), std::string::npos) << error.what();
+  }
+  LidarModel still = driverLidar(LaserDriver::kXv11);
+  still.rate = 0.0;
+  EXPECT_THROW(driverTiming(LaserDriver::kXv11, still), std::invalid_argument);
 }
 
 INSTANTIATE_TEST_SUITE_P(EveryDriver, DriverConventions, testing::ValuesIn(kExpected),

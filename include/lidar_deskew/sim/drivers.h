@@ -80,8 +80,8 @@ LaserDriver laserDriverFromName(const std::string& name);
 LidarModel driverLidar(LaserDriver driver);
 /// The driver's timing convention for `lidar` (normally driverLidar(driver)) as the fault its messages
 /// carry against the simulator's truth (stamp_error = stamp - earliest beam [s], reversed,
-/// time_increment_factor, zero_scan_time). Throws std::invalid_argument for kXv11 on a lidar whose
-/// rate is not positive.
+/// time_increment_factor, zero_scan_time). Throws std::invalid_argument naming the driver for a lidar
+/// whose rate is not finite and positive or that has fewer than 2 beams.
 TimingFault driverTiming(LaserDriver driver, const LidarModel& lidar);
 /// The driver's sensor on the timing-calibration drive (the "turns" drive of calibrationScenarios() at
 /// `speed`, "normal" or "high"), named "<sensor>/<speed>/turns/<driver>".
