@@ -3,7 +3,8 @@
 # holds only what was told. A steady circle (one constant twist, beams reversed): the offset cannot
 # show, exit 4, the file reverses the beams and has no stamp_at / time_offset line. The Neato bag: the
 # whole timing, exit 0, a time_offset within the sweep before the stamp. A straight line: nothing told,
-# exit 3, no file. A bag without the topic: exit 1.
+# exit 3, no file. A bag without the topic: exit 1. The LDS-01 driver's convention (deskew_simulate
+# --driver): stamp_at end and reversed beams written.
 # Usage: check_calibrate_cli.sh DESKEW_CALIBRATE DESKEW_SIMULATE NEATO_BAG
 set -euo pipefail
 export PATH=/usr/bin:/bin:$PATH
@@ -37,5 +38,18 @@ expect line 3 "$work/line.bag" --scan-topic /scan --output "$work/line.yaml"
 [ ! -e "$work/line.yaml" ] || fail "line: a file was written"
 
 expect missing 1 "$neato" --scan-topic /no_such_topic
-[ "$status" = 0 ] && echo "4 passed, 0 failed"
+
+# As the TurtleBot3's LDS-01 driver writes its scans (docs/REAL_ROBOTS.md): stamped at the latest beam,
+# ranges against the spin; 4 s of the turns drive tell both. --driver takes no other timing fault.
+"$simulate" --driver hls_lfcd_lds --duration 4 --noise --bag "$work/lds.bag" --truth "$work/lds.truth" >/dev/null
+expect lds 0 "$work/lds.bag" --output "$work/lds.yaml"
+grep -q '^stamp_at: end$' "$work/lds.yaml" || fail "hls_lfcd_lds: stamp_at end not written"
+grep -q '^beam_order: reversed$' "$work/lds.yaml" || fail "hls_lfcd_lds: beam_order reversed not written"
+code=0
+"$simulate" --driver rplidar --reversed --bag "$work/x.bag" --truth "$work/x.truth" 2>/dev/null || code=$?
+[ "$code" = 2 ] || fail "--driver with --reversed: exit $code, expected 2"
+code=0
+"$simulate" --driver no_such_driver --bag "$work/x.bag" --truth "$work/x.truth" 2>/dev/null || code=$?
+[ "$code" = 1 ] || fail "--driver no_such_driver: exit $code, expected 1"
+[ "$status" = 0 ] && echo "5 passed, 0 failed"
 exit "$status"

@@ -1,10 +1,12 @@
 // deskew_simulate: writes a simulated recording as a ROS 1 bag, with its ground-truth file: one of the
 // planar experiments (LaserScan: the paper's, or the "turns" drives for timing calibration, optionally
-// with the driver's timing faults), or a multi-line LIDAR sweep by sweep (PointCloud2 in a driver's
-// layout).
+// with timing faults or as a 2D driver writes its scans), or a multi-line LIDAR sweep by sweep
+// (PointCloud2 in a driver's layout).
 //
 //   deskew_simulate --list | --list-paper | --list-calibration | --list-smooth | --list-clouds |
-//                   --list-cloud-smooth | --list-conventions
+//                   --list-cloud-smooth | --list-conventions | --list-drivers
+//   deskew_simulate --driver rplidar --bag out.bag --truth out.truth [--scenario NAME] [--stamp-error S]
+//                   [--noise] [--seed N] [--tf-rate HZ] [--tf-margin S] [--duration S] [--odom-noise R]
 //   deskew_simulate --scenario UTM-30LX/high/arc --bag out.bag --truth out.truth [--noise] [--seed N]
 //                   [--tf-rate HZ] [--tf-margin S] [--clockwise] [--duration S] [--stamp-error S |
 //                   --stamp-at-end] [--reversed] [--time-increment-factor F] [--zero-scan-time]
@@ -20,6 +22,7 @@
 #include <vector>
 
 #include "lidar_deskew/sim/cloud_bag.h"
+#include "lidar_deskew/sim/drivers.h"
 #include "lidar_deskew/sim/sim_bag.h"
 
 namespace {
@@ -28,8 +31,9 @@ int usage(const char* program) {
   std::fprintf(
       stderr,
       "usage: %s --list | --list-paper | --list-calibration | --list-smooth | --list-clouds |\n"
-      "          --list-cloud-smooth | --list-conventions\n"
-      "       %s --scenario NAME --bag OUT.bag --truth OUT.truth [--noise] [--seed N] [--tf-rate HZ]\n"
+      "          --list-cloud-smooth | --list-conventions | --list-drivers\n"
+      "       %s --scenario NAME | --driver NAME [--scenario NAME] --bag OUT.bag --truth OUT.truth\n"
+      "          [--noise] [--seed N] [--tf-rate HZ]\n"
       "          [--tf-margin S] [--clockwise] [--duration S] [--stamp-error S | --stamp-at-end]\n"
       "          [--reversed] [--time-increment-factor F] [--zero-scan-time]\n"
       "          [--odom-noise R [--odom-seed N]]\n"
@@ -37,12 +41,19 @@ int usage(const char* program) {
       "          [--seed N] [--tf-rate HZ] [--duration S] [--latency S]\n"
       "  --list              the planar scenarios (LaserScan on /scan): the paper's, calibration's, smooth\n"
       "  --list-paper        the paper's 19, then 5 LDS-01 ones in a small room (docs/RESULTS.md)\n"
-      "  --list-calibration  the drives for timing calibration (SENSOR/normal|high/turns, SENSOR/normal/spin|circle)\n"
+      "  --list-calibration  the drives for timing calibration (SENSOR/normal|high/turns, "
+      "SENSOR/normal/spin|circle)\n"
       "  --list-smooth       speed and turn rate changing between samples too (SENSOR/normal|high/smooth)\n"
       "  --list-clouds       the multi-line scenarios (PointCloud2 on /points, frame lidar)\n"
       "  --list-cloud-smooth multi-line, speed and turn rate changing between samples too\n"
       "                      (SENSOR/normal|high|rough/smooth)\n"
       "  --list-conventions  the drivers' cloud layouts for --convention\n"
+      "  --list-drivers      the 2D drivers for --driver\n"
+      "  --driver NAME       the scans as that 2D driver writes them (docs/REAL_ROBOTS.md): its sensor\n"
+      "                      (beams, rate, field of view) and timing convention, on the sensor's\n"
+      "                      SENSOR/normal/turns drive, or with --scenario on that one's motion and\n"
+      "                      world; no timing-fault options with it but --stamp-error S, which then\n"
+      "                      adds S to the driver's stamp (a link's latency)\n"
       "  --tf-margin S       odometry from S before the first scan to S after the last (default 0.1)\n"
       "  --odom-noise R      odometry (/tf odom -> base_link, /odom) off by R relative per 20 ms step in\n"
       "                      x, y and yaw, a random walk away from the truth (default 0: perfect)\n"
@@ -62,7 +73,7 @@ int usage(const char* program) {
 
 int main(int argc, char** argv) {
   using namespace lidar_deskew;
-  std::string scenario_name, cloud_scenario_name, convention_name, bag_path, truth_path;
+  std::string scenario_name, cloud_scenario_name, convention_name, driver_name, bag_path, truth_path;
   bool clockwise = false, stamp_at_end = false, stamp_error_given = false, any_fault = false;
   bool tf_margin_given = false, odom_noise_given = false;
   double duration = 0.0;
@@ -88,6 +99,12 @@ int main(int argc, char** argv) {
       for (const std::string& name : sim::cloudConventionNames())
         std::printf("%s\n", name.c_str());
       return 0;
+    } else if (arg == "--list-drivers") {
+      for (const std::string& name : sim::laserDriverNames())
+        std::printf("%s\n", name.c_str());
+      return 0;
+    } else if (arg == "--driver" && has_value) {
+      driver_name = argv[++a];
     } else if (arg == "--scenario" && has_value) {
       scenario_name = argv[++a];
     } else if (arg == "--cloud-scenario" && has_value) {
@@ -136,8 +153,17 @@ int main(int argc, char** argv) {
     }
   }
   const bool cloud = !cloud_scenario_name.empty();
-  if (scenario_name.empty() == !cloud || bag_path.empty() || truth_path.empty())
+  const bool driver = !driver_name.empty();
+  if ((scenario_name.empty() && !driver) == !cloud || bag_path.empty() || truth_path.empty())
     return usage(argv[0]);
+  if (driver && (cloud || stamp_at_end || options.timing_fault.reversed ||
+                 options.timing_fault.time_increment_factor != 1.0 || options.timing_fault.zero_scan_time)) {
+    std::fprintf(stderr,
+                 "deskew_simulate: --driver sets the scans' timing; give it with neither --cloud-scenario "
+                 "nor a timing fault but --stamp-error (--stamp-at-end, --reversed, --time-increment-factor, "
+                 "--zero-scan-time)\n");
+    return 2;
+  }
   if (cloud && convention_name.empty()) {
     std::fprintf(stderr, "deskew_simulate: --cloud-scenario needs --convention (--list-conventions)\n");
     return 2;
@@ -185,12 +211,29 @@ int main(int argc, char** argv) {
       sim::writeCloudBag(sim::findCloudScenario(cloud_scenario_name), cloud_options, bag_path, truth_path);
       return 0;
     }
-    sim::Scenario scenario = sim::findScenario(scenario_name);
+    sim::Scenario scenario;
+    if (driver) {
+      const sim::LaserDriver laser_driver = sim::laserDriverFromName(driver_name);
+      scenario = sim::driverScenario(laser_driver);
+      if (!scenario_name.empty()) {  // that scenario's motion and world with the driver's sensor
+        const sim::LidarModel lidar = scenario.lidar;
+        scenario = sim::findScenario(scenario_name);
+        scenario.lidar = lidar;
+        scenario.name += "/" + driver_name;
+      }
+    } else {
+      scenario = sim::findScenario(scenario_name);
+    }
     if (clockwise) {
       scenario = sim::clockwiseVariant(scenario);
     }
     if (duration > 0.0) {  // longer recordings (benchmarks); the last motion piece goes on
       scenario.duration = duration;
+    }
+    if (driver) {  // --stamp-error adds a latency to the driver's own stamp
+      const double latency = options.timing_fault.stamp_error;
+      options.timing_fault = sim::driverTiming(sim::laserDriverFromName(driver_name), scenario.lidar);
+      options.timing_fault.stamp_error += latency;
     }
     if (stamp_at_end) {
       options.timing_fault.stamp_error = sim::TimingFault::stampedAtEnd(scenario.lidar).stamp_error;

@@ -196,6 +196,10 @@ std::vector<Scenario> calibrationScenarios() {
   return scenarios;
 }
 
+Scenario turnsScenario(const LidarModel& lidar, const std::string& speed) {
+  return makeTurnsScenario(lidar, speed);
+}
+
 std::vector<Scenario> planarScenarios() {
   std::vector<Scenario> scenarios = paperScenarios();
   for (Scenario& scenario : calibrationScenarios())

@@ -48,6 +48,10 @@ std::vector<Scenario> paperScenarios();
 /// twist for 12 s, in which an offset cannot show: "<sensor>/normal/spin" (1.5 rad/s in place) and
 /// "<sensor>/normal/circle" (0.5 m/s, 1 rad/s) for ILD26TRI, UTM-30LX and LDS-01.
 std::vector<Scenario> calibrationScenarios();
+/// The "turns" drive of calibrationScenarios() (speed "normal" or "high") with any `lidar`: in
+/// World::smallRoom() with the laser 32 mm behind the base when its range_max is below 10 m, else in the
+/// hall. Named "<lidar.name>/<speed>/turns".
+Scenario turnsScenario(const LidarModel& lidar, const std::string& speed);
 /// Motion whose twist changes all the time, between odometry samples too (sim::smoothUnicyclePieces):
 /// the speed follows a cosine of period 2 s from its peak through zero into reverse, the turn rate one
 /// of period 1.3 s; "normal" peaks at 1.5 m/s and 2 rad/s, "high" at 6 m/s and 5 rad/s. Laser 0.25 m
