@@ -260,9 +260,15 @@ void SweepPipeline<Processor>::add(const typename Message::ConstPtr& message, do
   observeClock(now);
   ++counters_.received;
   // A gap in header.seq is scans lost upstream; a smaller seq is a restarted driver or a looped bag,
-  // and 0 is taken for "unset".
+  // and 0 is taken for "unset". A repeated seq (ROS 2 conversions write 0 for all, some drivers
+  // repeat theirs) numbers no scans: nothing counts until seq goes up by one again.
   const std::uint32_t seq = message->header.seq;
-  if (last_seq_ && *last_seq_ != 0 && seq > *last_seq_ + 1 && seq - *last_seq_ <= kMaxSeqGap)
+  if (last_seq_ && seq == *last_seq_)
+    seq_repeated_ = true;
+  else if (last_seq_ && seq == *last_seq_ + 1)
+    seq_repeated_ = false;
+  if (last_seq_ && !seq_repeated_ && *last_seq_ != 0 && seq > *last_seq_ + 1 &&
+      seq - *last_seq_ <= kMaxSeqGap)
     counters_.lost_upstream += seq - *last_seq_ - 1;
   last_seq_ = seq;
   Pending pending;

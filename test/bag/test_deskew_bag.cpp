@@ -774,5 +774,47 @@ TEST(DeskewBag, TfRecordedLateCoversEveryScanAndEachDropIsAlone) {
   std::remove(output.c_str());
 }
 
+// A recording whose header.seq is 0 throughout (a ROS 2 bag converted, some drivers): deskew_bag
+// --consistency pairs raw and corrected scans by stamp and order, and measures what it measures on the
+// same recording with its seq intact; with reference: end the corrected stamps are not the raw ones.
+TEST(DeskewBag, ConsistencyPairsScansWithoutSeq) {
+  const std::string unnumbered = temporary("neato_seq0.bag");
+  {
+    rosbag::Bag in(kNeatoBag, rosbag::bagmode::Read), out(unnumbered, rosbag::bagmode::Write);
+    for (const rosbag::MessageInstance& message : rosbag::View(in)) {
+      if (message.getTopic() == "/stable_scan") {
+        auto scan = message.instantiate<sensor_msgs::LaserScan>();
+        scan->header.seq = 0;
+        out.write(message.getTopic(), message.getTime(), *scan, message.getConnectionHeader());
+      } else {
+        out.write(message.getTopic(), message.getTime(), message, message.getConnectionHeader());
+      }
+    }
+  }
+  std::vector<eval::ConsistencyReport> reports;
+  for (const std::string& input : {kNeatoBag, unnumbered}) {
+    BagDeskewOptions options;
+    options.input = input;
+    options.output = temporary("seq_out.bag");
+    options.scan_topics = {"/stable_scan"};
+    options.params.deskew.reference = core::Reference::kEnd;
+    const ros_adapter::PipelineCounters counters = deskewBag(options).counters.at("/stable_scan");
+    EXPECT_EQ(counters.lost_upstream, 0u);
+    EXPECT_EQ(counters.published, 57u);
+    reports.push_back(eval::measureConsistency(options.output, "/stable_scan", "/stable_scan_deskewed",
+                                               options.params));
+    std::remove(options.output.c_str());
+  }
+  std::printf("Neato, reference end: %zu pairs, raw %.2f mm, corrected %.2f mm; seq 0: %zu pairs, %.2f, %.2f\n",
+              reports[0].raw.pairs, reports[0].raw.mean * 1e3, reports[0].corrected.mean * 1e3,
+              reports[1].raw.pairs, reports[1].raw.mean * 1e3, reports[1].corrected.mean * 1e3);
+  EXPECT_GE(reports[0].raw.pairs, 300u);  // every corrected scan paired
+  EXPECT_EQ(reports[1].raw.pairs, reports[0].raw.pairs);
+  EXPECT_DOUBLE_EQ(reports[1].raw.mean, reports[0].raw.mean);
+  EXPECT_DOUBLE_EQ(reports[1].corrected.mean, reports[0].corrected.mean);
+  EXPECT_EQ(reports[1].corrected_turning.pairs, reports[0].corrected_turning.pairs);
+  std::remove(unnumbered.c_str());
+}
+
 }  // namespace
 }  // namespace lidar_deskew::bag

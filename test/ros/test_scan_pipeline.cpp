@@ -523,6 +523,29 @@ TEST(ScanPipeline, StaleTfOfAStrayPublisherCostsNoScan) {
   EXPECT_EQ(run.pipeline.counters().time_jumps, 1u);
 }
 
+// A seq that repeats (ROS 2 conversions write 0 for every scan, some drivers repeat theirs) numbers
+// no scans: its steps are no losses, until it goes up by one again.
+TEST(ScanPipeline, RepeatedSeqCountsNoLosses) {
+  PipelineRun run{Drive()};
+  run.statics(0.0);
+  run.tfUntil(0.05);
+  double t = 0.1;
+  const auto scanWithSeq = [&](std::uint32_t seq) {
+    const auto scan = run.drive.scanAt(t);
+    scan->header.seq = seq;
+    run.pipeline.add(scan, t + 0.025);
+    run.tfUntil(t + 0.05);
+    t += 0.025;
+  };
+  for (const std::uint32_t seq : {5u, 5u, 7u, 7u, 9u, 9u, 12u})
+    scanWithSeq(seq);
+  EXPECT_EQ(run.pipeline.counters().lost_upstream, 0u);
+  for (const std::uint32_t seq : {13u, 14u, 17u})  // numbering again: 15 and 16 lost
+    scanWithSeq(seq);
+  EXPECT_EQ(run.pipeline.counters().lost_upstream, 2u);
+  EXPECT_EQ(run.pipeline.counters().published, 10u);
+}
+
 // A recording (Waiting::kRecording) whose tf was recorded 1.5 s after the scans it covers: each scan
 // waits until tf passes its last beam, whatever tf_timeout and queue_size say, and is corrected onto
 // the true walls. The first scan starts before tf does and the last ends after it: each is dropped

@@ -43,7 +43,7 @@ struct PipelineCounters {
   /// publisher of stale tf): left out, the tf cache kept.
   std::uint64_t stale_tf = 0;
   /// Scans lost before the pipeline saw them (a driver's, the network's or roscpp's input queue), from
-  /// gaps in header.seq; 0 when the driver leaves seq unset.
+  /// gaps in header.seq; 0 when the driver leaves seq unset (0) or repeats it.
   std::uint64_t lost_upstream = 0;
   /// Every scan dropped (invalid, mount, queue, tf) by its cause ("tf never reached the sweep's end"):
   /// short, fixed texts, one per kind of cause; the reports give each scan's details.
@@ -207,6 +207,7 @@ class SweepPipeline {
   std::deque<Pending> pending_;
   PipelineCounters counters_;
   std::optional<std::uint32_t> last_seq_;  // header.seq of the last scan received
+  bool seq_repeated_ = false;              // it repeated, and has not gone up by one since
   core::TimeNs tf_began_ = 0;  // [ns] the first time tf answered fixed -> base at (since a time jump)
   std::optional<double> clock_;            // [s] the newest `now` given (since the last time jump)
   bool clock_follows_tf_ = false;          // tf went back; the clock going back next is the same jump
