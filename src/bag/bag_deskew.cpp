@@ -70,12 +70,15 @@ class PipelineStream final : public Stream {
   using Pipeline = ros_adapter::SweepPipeline<Processor>;
   using Message = typename Processor::Message;
 
+  /// `inform` receives the first note of each kind, and of a failure the first of each cause.
   PipelineStream(const std::string& topic, const BagDeskewOptions& options, rosbag::Bag& output,
-                 typename Pipeline::Report report)
+                 std::function<void(const std::string&)> inform)
       : topic_(topic),
         replace_(options.replace),
         output_(output),
+        inform_(std::move(inform)),
         // Outputs are written at their sweep's record time (the id it was given), next to it in the bag.
+        // Scans wait for the recording's tf, however late it was recorded (ros_adapter::Waiting).
         pipeline_(
             options.params,
             [this](const typename Pipeline::Result& result) {
@@ -83,7 +86,8 @@ class PipelineStream final : public Stream {
               record_time.fromNSec(result.id);
               writeOutputs(output_, topic_, replace_, record_time, result.outputs);
             },
-            std::move(report)) {}
+            [this](PipelineEvent event, const std::string& text) { note(event, text); }, 10.0,
+            ros_adapter::Waiting::kRecording) {}
 
   void addTransforms(const std::vector<geometry_msgs::TransformStamped>& transforms, bool is_static,
                      double now) override {
@@ -106,9 +110,25 @@ class PipelineStream final : public Stream {
   const ros_adapter::TfFeed& tf() const override { return pipeline_.tf(); }
 
  private:
+  /// Each kind of note once (the counts are in the summary); statics left out are said once per frame
+  /// by the pipeline already. A scan dropped or passed through is said for the first of each cause
+  /// (the pipeline counts it under its cause before it reports it).
+  void note(PipelineEvent event, const std::string& text) {
+    const ros_adapter::PipelineCounters& counters = pipeline_.counters();
+    const std::size_t causes = counters.dropped_by_cause.size() + counters.passed_by_cause.size();
+    const bool new_cause = causes > causes_said_;
+    causes_said_ = causes;
+    const bool new_kind = said_.insert(event).second;
+    if (event == PipelineEvent::kStaticIgnored || new_cause || new_kind)
+      inform_(topic_ + ": " + text);
+  }
+
   std::string topic_;
   bool replace_;
   rosbag::Bag& output_;
+  std::function<void(const std::string&)> inform_;
+  std::set<PipelineEvent> said_;
+  std::size_t causes_said_ = 0;
   Pipeline pipeline_;
 };
 
@@ -182,15 +202,6 @@ BagDeskewSummary deskewBag(const BagDeskewOptions& options) {
       summary.chosen_topics.push_back(topic);
     }
   }
-  // Each kind of note once per topic; the counts are in the summary.
-  const auto reporter = [inform](const std::string& topic) {
-    auto said = std::make_shared<std::set<PipelineEvent>>();
-    return [inform, topic, said](PipelineEvent event, const std::string& text) {
-      // Statics left out are said once per frame by the pipeline already; mount changes, once here.
-      if (event == PipelineEvent::kStaticIgnored || said->insert(event).second)
-        inform(topic + ": " + text);
-    };
-  };
   std::map<std::string, std::unique_ptr<Stream>> streams;  // by topic
 
   const auto corrected = [&streams] {
@@ -205,12 +216,12 @@ BagDeskewSummary deskewBag(const BagDeskewOptions& options) {
     rosbag::Bag output(temporary, rosbag::bagmode::Write);
     output.setCompression(compression);
     for (const std::string& topic : scan_topics) {
-      streams[topic] = std::make_unique<PipelineStream<ros_adapter::ScanProcessor>>(topic, options, output,
-                                                                                    reporter(topic));
+      streams[topic] =
+          std::make_unique<PipelineStream<ros_adapter::ScanProcessor>>(topic, options, output, inform);
     }
     for (const std::string& topic : cloud_topics) {
-      streams[topic] = std::make_unique<PipelineStream<ros_adapter::CloudProcessor>>(topic, options, output,
-                                                                                     reporter(topic));
+      streams[topic] =
+          std::make_unique<PipelineStream<ros_adapter::CloudProcessor>>(topic, options, output, inform);
     }
 
     rosbag::View view(input);
@@ -237,7 +248,7 @@ BagDeskewSummary deskewBag(const BagDeskewOptions& options) {
         stream->second->add(message, now);
       }
       for (auto& [name, pipeline] : streams)
-        pipeline->expire(now);  // waiting measured in record time, as live on the wall clock
+        pipeline->expire(now);  // tf that stopped coming: record time bounds the wait (and the memory)
 
       const auto wall = std::chrono::steady_clock::now();
       if (options.progress && wall - last_progress > std::chrono::milliseconds(200)) {
@@ -246,7 +257,7 @@ BagDeskewSummary deskewBag(const BagDeskewOptions& options) {
       }
     }
     for (auto& [topic, pipeline] : streams) {
-      pipeline->flush();  // nothing more will come: what still waits has no tf
+      pipeline->flush();  // nothing more will come: each scan still waiting is decided alone
       summary.counters[topic] = pipeline->counters();
       const ros_adapter::PipelineCounters& counters = summary.counters[topic];
       if (counters.received > 0 && counters.published == 0) {

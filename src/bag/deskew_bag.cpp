@@ -66,11 +66,28 @@ int usageError(const char* program, const std::string& message) {
   return 2;
 }
 
+/// "dropped 3: tf never reached the sweep's end (2), no laser mount in tf (1)"; empty when none.
+std::string byCause(const char* what, const std::map<std::string, std::uint64_t>& causes) {
+  std::uint64_t total = 0;
+  std::string list;
+  for (const auto& [cause, count] : causes) {
+    total += count;
+    list += (list.empty() ? "" : ", ") + cause + " (" + std::to_string(count) + ")";
+  }
+  return total == 0 ? "" : std::string(what) + " " + std::to_string(total) + ": " + list;
+}
+
 void printCounters(const std::string& topic, const ros_adapter::PipelineCounters& counters) {
   std::string text;
   for (const auto& [name, value] : ros_adapter::namedCounters(counters))
     text += (text.empty() ? "" : ", ") + name + " " + std::to_string(value);
   std::printf("  %s: %s\n", topic.c_str(), text.c_str());
+  for (const auto& [what, causes] : {std::pair{"dropped", &counters.dropped_by_cause},
+                                     std::pair{"passed through", &counters.passed_by_cause}}) {
+    const std::string line = byCause(what, *causes);
+    if (!line.empty())
+      std::printf("    %s\n", line.c_str());
+  }
 }
 
 }  // namespace

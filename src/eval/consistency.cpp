@@ -6,6 +6,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <deque>
 #include <fstream>
 #include <map>
 #include <memory>
@@ -15,6 +16,7 @@
 #include "lidar_deskew/eval/recorded_tf.h"
 #include "lidar_deskew/ros/bag_file.h"
 #include "lidar_deskew/ros/conversions.h"
+#include "lidar_deskew/ros/scan_processor.h"
 
 namespace lidar_deskew::eval {
 
@@ -40,15 +42,31 @@ ConsistencyReport measureConsistency(const std::string& bag_path, const std::str
     if (const auto scan = message.instantiate<sensor_msgs::LaserScan>())
       (message.getTopic() == scan_topic ? raw : corrected).push_back(scan);
   }
-  // Pair each raw scan with its corrected version: the header (seq, frame) is carried over, the stamp
-  // becomes the reference time.
-  std::map<std::uint32_t, sensor_msgs::LaserScan::ConstPtr> corrected_by_seq;
+  // Pair each raw scan with its corrected version by stamp and order: the corrected one is stamped at
+  // the raw one's reference time (on whole microseconds), in the same frame. header.seq cannot pair
+  // them: ROS 2 conversions and some drivers leave it 0 or repeat it.
+  std::map<std::pair<std::string, core::TimeNs>, std::deque<sensor_msgs::LaserScan::ConstPtr>> corrected_by_stamp;
   for (const auto& scan : corrected)
-    corrected_by_seq[scan->header.seq] = scan;
-  if (corrected_by_seq.size() != corrected.size()) {
-    throw std::runtime_error(bag_path + ": scans on " + scan_topic +
-                             " have repeated header.seq; cannot pair them");
-  }
+    corrected_by_stamp[{scan->header.frame_id, toNs(scan->header.stamp)}].push_back(scan);
+  const ros_adapter::ScanProcessor processor(params);
+  const auto correctedOf = [&](const sensor_msgs::LaserScan::ConstPtr& scan) -> sensor_msgs::LaserScan::ConstPtr {
+    core::TimeNs reference = 0;
+    try {
+      reference = processor.prepare(scan).timing.referenceTime(params.deskew.reference);
+    } catch (const std::exception&) {
+      return nullptr;  // malformed: not corrected
+    }
+    constexpr core::TimeNs kMicrosecond = 1000;
+    auto match = corrected_by_stamp.lower_bound({scan->header.frame_id, reference - kMicrosecond});
+    if (match == corrected_by_stamp.end() || match->first.first != scan->header.frame_id ||
+        match->first.second > reference + kMicrosecond)
+      return nullptr;
+    const sensor_msgs::LaserScan::ConstPtr found = match->second.front();
+    match->second.pop_front();
+    if (match->second.empty())
+      corrected_by_stamp.erase(match);
+    return found;
+  };
   // A scan's ranges in the fixed frame, every beam placed with tf at the scan's stamp.
   const auto place = [&](const sensor_msgs::LaserScan& scan) {
     std::string error;
@@ -63,8 +81,8 @@ ConsistencyReport measureConsistency(const std::string& bag_path, const std::str
   std::vector<core::PlacedScan> raw_placed, corrected_placed;
   std::vector<double> turn_rates;
   for (const auto& scan : raw) {
-    const auto match = corrected_by_seq.find(scan->header.seq);
-    if (match == corrected_by_seq.end() || scan->ranges.empty() || scan->angle_increment == 0.0f)
+    const sensor_msgs::LaserScan::ConstPtr match = correctedOf(scan);
+    if (!match || scan->ranges.empty() || scan->angle_increment == 0.0f)
       continue;  // not corrected (no tf)
     try {
       const core::TimeNs start = toNs(scan->header.stamp);
@@ -73,7 +91,7 @@ ConsistencyReport measureConsistency(const std::string& bag_path, const std::str
       const double span = period > 0.0 ? period : 0.1;
       const double turn_rate = core::turnRate(tf->motion(), start, start + core::secondsToNs(span));
       core::PlacedScan placed_raw = place(*scan);
-      core::PlacedScan placed_corrected = place(*match->second);
+      core::PlacedScan placed_corrected = place(*match);
       raw_placed.push_back(std::move(placed_raw));
       corrected_placed.push_back(std::move(placed_corrected));
       turn_rates.push_back(std::abs(turn_rate));

@@ -40,6 +40,21 @@ constexpr std::uint32_t kMaxSeqGap = 100000;
 /// [s] The owner's clock going back by more than this is a time jump (as tf's stamps: TfFeed).
 constexpr double kClockJump = 1.0;
 
+// The causes scans are counted under (PipelineCounters::dropped_by_cause, passed_by_cause).
+const char* const kCauseMalformed = "malformed";
+const char* const kCauseStampUnset = "header.stamp 0 (unset)";
+const char* const kCauseStamp = "a stamp tf cannot take";
+const char* const kCauseMount = "no laser mount in tf";
+const char* const kCauseQueue = "more than queue_size waiting";
+const char* const kCauseTimeJump = "time went backwards";
+const char* const kCauseUndecided = "tf went back in time, undecided";
+const char* const kCauseEndLive = "tf did not reach the sweep's end within tf_timeout";
+const char* const kCauseEnd = "tf never reached the sweep's end";
+const char* const kCauseBegan = "tf began after the sweep's start";
+const char* const kCauseStart = "tf no longer held the sweep's start";
+const char* const kCauseTfGap = "tf gap longer than max_tf_gap";
+const char* const kCauseMotion = "motion unavailable";
+
 }  // namespace
 
 std::vector<std::pair<std::string, std::uint64_t>> namedCounters(const PipelineCounters& c) {
@@ -92,14 +107,20 @@ std::string toString(PipelineEvent event) {
 
 template <class Processor>
 SweepPipeline<Processor>::SweepPipeline(const DeskewParams& params, Publish publish, Report report,
-                                        double tf_cache_time)
+                                        double tf_cache_time, Waiting waiting)
     : params_((params.validate(), params)),
+      waiting_(waiting),
       publish_(std::move(publish)),
       report_(std::move(report)),
       tf_(params.fixed_frame, params.base_frame,
-          std::max(tf_cache_time, params.tf_timeout + params.timing.max_sweep_duration + 1.0),
+          std::max(tf_cache_time, longestWait() + params.timing.max_sweep_duration + 1.0),
           [this](TfEvent event, const std::string& text) { onTfEvent(event, text); }),
       processor_(params) {}
+
+template <class Processor>
+double SweepPipeline<Processor>::longestWait() const {
+  return waiting_ == Waiting::kRecording ? std::max(params_.tf_timeout, kRecordedTfWait) : params_.tf_timeout;
+}
 
 template <class Processor>
 void SweepPipeline<Processor>::reconfigure(const DeskewParams& next) {
@@ -143,6 +164,7 @@ void SweepPipeline<Processor>::onTfEvent(TfEvent event, const std::string& text)
       report_(PipelineEvent::kStaticIgnored, text);
       break;
     case TfEvent::kTimeJump:
+      tf_began_ = 0;  // the cache holds the new time line only
       if (tf_follows_clock_) {
         // The clock went back first (counted then) and old tf came after it; the cache now holds the
         // new time line, and the scans waiting belong to it.
@@ -202,6 +224,7 @@ void SweepPipeline<Processor>::observeClock(double now) {
                                         " s: clearing the tf cache and " + std::to_string(pending_.size()) +
                                         " waiting " + std::string(Processor::kNoun) + "s");
   tf_.forgetMotion();
+  tf_began_ = 0;
   // tf of the old time line may still be on its way (another connection) and refill the cache: the tf
   // going back after it is then this jump, not another.
   tf_follows_clock_ = true;
@@ -217,7 +240,7 @@ void SweepPipeline<Processor>::failWaiting(const std::string& reason) {
     if (!tf_.mountKnown(pending.frame))
       dropForMount(pending, "");
     else
-      fail(pending, reason.empty() ? whyNotCovered(pending) : reason);
+      fail(pending, kCauseTimeJump, reason);
   }
 }
 
@@ -227,6 +250,8 @@ void SweepPipeline<Processor>::addTransforms(const std::vector<geometry_msgs::Tr
   observeClock(now);
   for (const geometry_msgs::TransformStamped& transform : transforms)
     tf_.add(transform, is_static);
+  if (tf_began_ == 0)
+    tf_began_ = tf_.newestChainTime();
   serveReady(now);
 }
 
@@ -235,9 +260,15 @@ void SweepPipeline<Processor>::add(const typename Message::ConstPtr& message, do
   observeClock(now);
   ++counters_.received;
   // A gap in header.seq is scans lost upstream; a smaller seq is a restarted driver or a looped bag,
-  // and 0 is taken for "unset".
+  // and 0 is taken for "unset". A repeated seq (ROS 2 conversions write 0 for all, some drivers
+  // repeat theirs) numbers no scans: nothing counts until seq goes up by one again.
   const std::uint32_t seq = message->header.seq;
-  if (last_seq_ && *last_seq_ != 0 && seq > *last_seq_ + 1 && seq - *last_seq_ <= kMaxSeqGap)
+  if (last_seq_ && seq == *last_seq_)
+    seq_repeated_ = true;
+  else if (last_seq_ && seq == *last_seq_ + 1)
+    seq_repeated_ = false;
+  if (last_seq_ && !seq_repeated_ && *last_seq_ != 0 && seq > *last_seq_ + 1 &&
+      seq - *last_seq_ <= kMaxSeqGap)
     counters_.lost_upstream += seq - *last_seq_ - 1;
   last_seq_ = seq;
   Pending pending;
@@ -247,6 +278,7 @@ void SweepPipeline<Processor>::add(const typename Message::ConstPtr& message, do
     pending.prepared = processor_.prepare(message);
   } catch (const std::exception& error) {  // core::InvalidInput, or out of memory for an absurd scan
     ++counters_.dropped_invalid;
+    ++counters_.dropped_by_cause[kCauseMalformed];
     report_(PipelineEvent::kMalformed,
             "dropping malformed " + std::string(Processor::kNoun) + " (frame '" + message->header.frame_id +
                 "', stamp " + std::to_string(message->header.stamp.toSec()) + "): " + error.what());
@@ -254,6 +286,7 @@ void SweepPipeline<Processor>::add(const typename Message::ConstPtr& message, do
   }
   pending.frame = normalizedFrame(message->header.frame_id);
   if (message->header.stamp.isZero()) {
+    ++counters_.dropped_by_cause[kCauseStampUnset];
     dropInvalid(pending, "header.stamp is 0 (unset: the driver did not stamp it)");
     return;
   }
@@ -261,8 +294,10 @@ void SweepPipeline<Processor>::add(const typename Message::ConstPtr& message, do
   if (fallback != nullptr && counters_.time_fallbacks++ == 0)
     report_(PipelineEvent::kTimeFallback, std::string(fallback) + " (counted)");
   pending_.push_back(std::move(pending));
-  while (static_cast<int>(pending_.size()) > params_.queue_size) {
+  // A recording's scans wait for tf that comes late without a count: tf decides each one.
+  while (waiting_ == Waiting::kTimeout && static_cast<int>(pending_.size()) > params_.queue_size) {
     ++counters_.dropped_queue;
+    ++counters_.dropped_by_cause[kCauseQueue];
     report_(PipelineEvent::kQueueFull, "more than " + std::to_string(params_.queue_size) + " " +
                                            std::string(Processor::kNoun) +
                                            "s wait for tf; dropping the oldest");
@@ -287,6 +322,10 @@ bool SweepPipeline<Processor>::extrapolatable(const Pending& pending) const {
 template <class Processor>
 void SweepPipeline<Processor>::serveReady(double now) {
   observeClock(now);
+  if (waiting_ == Waiting::kRecording) {
+    serveRecorded(now);
+    return;
+  }
   while (!pending_.empty()) {
     if (tf_.jumpPending())
       return;  // tf went back: a time jump or stale tf, told by the transforms that follow
@@ -299,10 +338,44 @@ void SweepPipeline<Processor>::serveReady(double now) {
       return;
     const Pending next = std::move(pending_.front());
     pending_.pop_front();
-    if (coverage == Coverage::kNever)
+    if (coverage == Coverage::kNever) {
+      ++counters_.dropped_by_cause[kCauseStamp];
       dropInvalid(next, never);  // tf cannot take its times: never at the head of the queue
-    else
+    } else {
       correct(next, false, now);
+    }
+  }
+}
+
+template <class Processor>
+void SweepPipeline<Processor>::serveRecorded(double now) {
+  if (tf_.jumpPending())
+    return;  // tf went back: a time jump or stale tf, told by the transforms that follow
+  // tf only grows: a sweep ending after tf's newest waits. Once tf has passed its end, tf either
+  // covers it or never will (its start before tf began, or gone from the cache).
+  const core::TimeNs newest = tf_.newestChainTime();
+  for (auto it = pending_.begin(); it != pending_.end();) {
+    const core::TimeNs latest = it->prepared.latest();
+    if (newest == 0 || (latest > newest && latest <= newest + TfFeed::kFarNs)) {
+      ++it;
+      continue;
+    }
+    std::string never;
+    const Coverage coverage = tf_.coverage(it->prepared.earliest(), latest, &never);
+    if (coverage == Coverage::kCovered && !tf_.mountKnown(it->frame)) {
+      ++it;  // the mount may come later (another connection)
+      continue;
+    }
+    const Pending next = std::move(*it);
+    it = pending_.erase(it);
+    if (coverage == Coverage::kNever) {
+      ++counters_.dropped_by_cause[kCauseStamp];
+      dropInvalid(next, never);
+    } else if (coverage == Coverage::kCovered) {
+      correct(next, false, now);
+    } else {
+      failNotCovered(next, "");
+    }
   }
 }
 
@@ -316,6 +389,23 @@ std::string SweepPipeline<Processor>::whyNotCovered(const Pending& pending) cons
 }
 
 template <class Processor>
+std::string SweepPipeline<Processor>::causeNotCovered(const Pending& pending) const {
+  if (tf_.jumpPending())
+    return kCauseUndecided;
+  const core::TimeNs newest = tf_.newestChainTime();
+  if (newest == 0)
+    return "no tf " + tf_.fixedFrame() + " -> " + tf_.baseFrame();
+  if (newest < pending.prepared.latest())
+    return waiting_ == Waiting::kRecording ? kCauseEnd : kCauseEndLive;
+  return pending.prepared.earliest() < tf_began_ ? kCauseBegan : kCauseStart;
+}
+
+template <class Processor>
+void SweepPipeline<Processor>::failNotCovered(const Pending& pending, const std::string& suffix) {
+  fail(pending, causeNotCovered(pending), whyNotCovered(pending) + suffix);
+}
+
+template <class Processor>
 void SweepPipeline<Processor>::dropInvalid(const Pending& pending, const std::string& why) {
   ++counters_.dropped_invalid;
   report_(PipelineEvent::kMalformed,
@@ -326,6 +416,7 @@ void SweepPipeline<Processor>::dropInvalid(const Pending& pending, const std::st
 template <class Processor>
 void SweepPipeline<Processor>::dropForMount(const Pending& pending, const std::string& error) {
   ++counters_.dropped_mount;
+  ++counters_.dropped_by_cause[kCauseMount];
   report_(PipelineEvent::kMountMissing,
           "dropping " + std::string(Processor::kNoun) + " at " +
               std::to_string(pending.prepared.message->header.stamp.toSec()) + ": no transform " +
@@ -336,7 +427,9 @@ void SweepPipeline<Processor>::dropForMount(const Pending& pending, const std::s
 template <class Processor>
 void SweepPipeline<Processor>::expire(double now) {
   serveReady(now);
-  while (!pending_.empty() && now - pending_.front().arrival > params_.tf_timeout) {
+  // Scans wait in arrival order: the front one has waited longest.
+  const double longest = longestWait();
+  while (!pending_.empty() && now - pending_.front().arrival > longest) {
     const Pending expired = std::move(pending_.front());
     pending_.pop_front();
     if (extrapolatable(expired)) {
@@ -345,8 +438,9 @@ void SweepPipeline<Processor>::expire(double now) {
     } else if (!tf_.mountKnown(expired.frame)) {
       dropForMount(expired, "");
     } else {
-      fail(expired,
-           whyNotCovered(expired) + " (waited tf_timeout, " + formatNumber(params_.tf_timeout) + " s)");
+      failNotCovered(expired, waiting_ == Waiting::kRecording
+                                  ? " (waited " + formatNumber(longest) + " s of record time)"
+                                  : " (waited tf_timeout, " + formatNumber(longest) + " s)");
     }
     serveReady(now);  // scans behind an expired one may be ready: serve them before they expire
   }
@@ -354,7 +448,22 @@ void SweepPipeline<Processor>::expire(double now) {
 
 template <class Processor>
 void SweepPipeline<Processor>::flush() {
-  failWaiting("");  // each with its cause
+  std::deque<Pending> waiting;
+  waiting.swap(pending_);
+  for (const Pending& pending : waiting) {
+    std::string never;
+    const Coverage coverage = tf_.coverage(pending.prepared.earliest(), pending.prepared.latest(), &never);
+    if (coverage == Coverage::kNever) {
+      ++counters_.dropped_by_cause[kCauseStamp];
+      dropInvalid(pending, never);
+    } else if (!tf_.mountKnown(pending.frame)) {
+      dropForMount(pending, "");
+    } else if (coverage == Coverage::kCovered) {
+      correct(pending, false, clock_.value_or(pending.arrival));  // tf that went back undecided is not in it
+    } else {
+      failNotCovered(pending, "");
+    }
+  }
 }
 
 template <class Processor>
@@ -385,10 +494,10 @@ void SweepPipeline<Processor>::correct(const Pending& pending, bool extrapolate,
     }
   } catch (const TfGapTooLong& gap) {
     ++counters_.tf_gaps;
-    fail(pending, gap.what());
+    fail(pending, kCauseTfGap, gap.what());
     return;
   } catch (const core::MotionUnavailable& unavailable) {
-    fail(pending, unavailable.what());
+    fail(pending, kCauseMotion, unavailable.what());
     return;
   }
   ++counters_.published;
@@ -402,15 +511,18 @@ void SweepPipeline<Processor>::correct(const Pending& pending, bool extrapolate,
 }
 
 template <class Processor>
-void SweepPipeline<Processor>::fail(const Pending& pending, const std::string& reason) {
+void SweepPipeline<Processor>::fail(const Pending& pending, const std::string& cause,
+                                    const std::string& reason) {
   const std::string stamp = std::to_string(pending.prepared.message->header.stamp.toSec());
   if (params_.on_tf_failure == OnTfFailure::kDrop) {
     ++counters_.dropped_tf;
+    ++counters_.dropped_by_cause[cause];
     report_(PipelineEvent::kTfFailure, "dropping " + std::string(Processor::kNoun) + " at " + stamp +
                                            " (frame " + pending.frame + "): " + reason);
     return;
   }
   ++counters_.passed_through;
+  ++counters_.passed_by_cause[cause];
   report_(PipelineEvent::kTfFailure, "passing " + std::string(Processor::kNoun) + " at " + stamp +
                                          " (frame " + pending.frame + ") through uncorrected: " + reason);
   Result result;

@@ -712,5 +712,109 @@ TEST(DeskewBagTool, InterruptedRunLeavesNothingBehind) {
   std::remove(truth_path.c_str());
 }
 
+/// Writes `drive` as a robot whose tf is recorded `lag` [s] after its stamps (a busy recorder, tf
+/// relayed): the statics latched at the start, scans of `scans` revolutions from t = 0 recorded at their
+/// sweep's end, /tf at 50 Hz stamped from 0.02 s (inside the first scan) to before the last scan's
+/// end, so tf covers every scan but the first and the last.
+void writeLateTfBag(const std::string& path, const test::Drive& drive, int scans, double lag) {
+  rosbag::Bag bag(path, rosbag::bagmode::Write);
+  tf2_msgs::TFMessage statics;
+  statics.transforms = drive.statics();
+  bag.write("/tf_static", drive.stampOf(0.0), statics);
+  const double period = 1.0 / drive.model.rate;
+  for (int k = 0; k < scans; ++k)
+    bag.write("/scan", drive.stampOf((k + 1) * period), *drive.scanAt(k * period));
+  for (int j = 1; 0.02 * j < scans * period - 0.01; ++j) {
+    tf2_msgs::TFMessage message;
+    message.transforms.push_back(drive.motionAt(0.02 * j));
+    bag.write("/tf", drive.stampOf(0.02 * j + lag), message);
+  }
+}
+
+// tf recorded 1.5 s after the scans it covers (60 scans wait for it at once): offline every scan tf
+// covers is corrected onto the true walls, at the defaults (tf_timeout 0.2 s, queue_size 10 measured
+// live) and with a queue that holds the whole recording; the first scan (before tf began) and the last
+// (after it ended) are each dropped alone, never with the scans behind them, and the summary names
+// both causes with their counts.
+TEST(DeskewBag, TfRecordedLateCoversEveryScanAndEachDropIsAlone) {
+  const test::Drive drive;
+  const int scans = 80;  // 2 s at 40 Hz
+  const std::string input = temporary("late_tf.bag"), output = temporary("late_tf_out.bag");
+  writeLateTfBag(input, drive, scans, 1.5);
+  for (const bool whole_queue : {false, true}) {
+    BagDeskewOptions options;
+    options.input = input;
+    options.output = output;
+    if (whole_queue) {
+      options.params.queue_size = 1000;
+      options.params.tf_timeout = 30.0;
+    }
+    std::string notes;
+    options.inform = [&](const std::string& note) { notes += note + "\n"; };
+    const ros_adapter::PipelineCounters counters = deskewBag(options).counters.at("/scan");
+    EXPECT_EQ(counters.received, static_cast<std::uint64_t>(scans)) << whole_queue;
+    EXPECT_EQ(counters.published, static_cast<std::uint64_t>(scans - 2)) << whole_queue;
+    EXPECT_EQ(counters.dropped_tf, 2u) << whole_queue;
+    const std::map<std::string, std::uint64_t> causes{{"tf began after the sweep's start", 1},
+                                                      {"tf never reached the sweep's end", 1}};
+    EXPECT_EQ(counters.dropped_by_cause, causes) << whole_queue;
+    // Each cause is said, with its scan's details.
+    EXPECT_NE(notes.find("has nothing at the sweep's start"), std::string::npos) << notes;
+    EXPECT_NE(notes.find("has not reached the sweep's end"), std::string::npos) << notes;
+    const std::vector<double> distances = cloudDistances(output, drive, [&](double) { return drive.mount; });
+    EXPECT_EQ(read<sensor_msgs::LaserScan>(output, "/scan_deskewed").size(), std::size_t(scans - 2));
+    EXPECT_LT(test::rms(distances), 1e-3) << whole_queue;  // tf's own line between 50 Hz samples
+  }
+  std::string printed;
+  EXPECT_EQ(runTool({input, output, "--quiet"}, printed), 0) << printed;
+  EXPECT_NE(printed.find("dropped 2: tf began after the sweep's start (1), tf never reached the sweep's end (1)"),
+            std::string::npos)
+      << printed;
+  std::remove(input.c_str());
+  std::remove(output.c_str());
+}
+
+// A recording whose header.seq is 0 throughout (a ROS 2 bag converted, some drivers): deskew_bag
+// --consistency pairs raw and corrected scans by stamp and order, and measures what it measures on the
+// same recording with its seq intact; with reference: end the corrected stamps are not the raw ones.
+TEST(DeskewBag, ConsistencyPairsScansWithoutSeq) {
+  const std::string unnumbered = temporary("neato_seq0.bag");
+  {
+    rosbag::Bag in(kNeatoBag, rosbag::bagmode::Read), out(unnumbered, rosbag::bagmode::Write);
+    for (const rosbag::MessageInstance& message : rosbag::View(in)) {
+      if (message.getTopic() == "/stable_scan") {
+        auto scan = message.instantiate<sensor_msgs::LaserScan>();
+        scan->header.seq = 0;
+        out.write(message.getTopic(), message.getTime(), *scan, message.getConnectionHeader());
+      } else {
+        out.write(message.getTopic(), message.getTime(), message, message.getConnectionHeader());
+      }
+    }
+  }
+  std::vector<eval::ConsistencyReport> reports;
+  for (const std::string& input : {kNeatoBag, unnumbered}) {
+    BagDeskewOptions options;
+    options.input = input;
+    options.output = temporary("seq_out.bag");
+    options.scan_topics = {"/stable_scan"};
+    options.params.deskew.reference = core::Reference::kEnd;
+    const ros_adapter::PipelineCounters counters = deskewBag(options).counters.at("/stable_scan");
+    EXPECT_EQ(counters.lost_upstream, 0u);
+    EXPECT_EQ(counters.published, 57u);
+    reports.push_back(eval::measureConsistency(options.output, "/stable_scan", "/stable_scan_deskewed",
+                                               options.params));
+    std::remove(options.output.c_str());
+  }
+  std::printf("Neato, reference end: %zu pairs, raw %.2f mm, corrected %.2f mm; seq 0: %zu pairs, %.2f, %.2f\n",
+              reports[0].raw.pairs, reports[0].raw.mean * 1e3, reports[0].corrected.mean * 1e3,
+              reports[1].raw.pairs, reports[1].raw.mean * 1e3, reports[1].corrected.mean * 1e3);
+  EXPECT_GE(reports[0].raw.pairs, 300u);  // every corrected scan paired
+  EXPECT_EQ(reports[1].raw.pairs, reports[0].raw.pairs);
+  EXPECT_DOUBLE_EQ(reports[1].raw.mean, reports[0].raw.mean);
+  EXPECT_DOUBLE_EQ(reports[1].corrected.mean, reports[0].corrected.mean);
+  EXPECT_EQ(reports[1].corrected_turning.pairs, reports[0].corrected_turning.pairs);
+  std::remove(unnumbered.c_str());
+}
+
 }  // namespace
 }  // namespace lidar_deskew::bag

@@ -22,12 +22,14 @@ constexpr double kTfPeriod = 0.02;
 struct PipelineRun {
   /// `fixed_frame`: instead of the tree's (a misspelt one).
   explicit PipelineRun(const Drive& drive_in, ros_adapter::DeskewParams params = {},
-                       const std::string& fixed_frame = "")
+                       const std::string& fixed_frame = "",
+                       ros_adapter::Waiting waiting = ros_adapter::Waiting::kTimeout)
       : drive(drive_in),
         pipeline(
             withFrames(params, drive_in.tree, fixed_frame),
             [this](const PipelineResult& result) { results.push_back(result); },
-            [this](PipelineEvent event, const std::string& text) { events.emplace_back(event, text); }) {}
+            [this](PipelineEvent event, const std::string& text) { events.emplace_back(event, text); }, 10.0,
+            waiting) {}
 
   static ros_adapter::DeskewParams withFrames(ros_adapter::DeskewParams params, const TfTree& tree,
                                               const std::string& fixed_frame) {
@@ -519,6 +521,88 @@ TEST(ScanPipeline, StaleTfOfAStrayPublisherCostsNoScan) {
   run.tf_until = 0.0;  // the bag starts again
   run.tfUntil(0.1);
   EXPECT_EQ(run.pipeline.counters().time_jumps, 1u);
+}
+
+// A seq that repeats (ROS 2 conversions write 0 for every scan, some drivers repeat theirs) numbers
+// no scans: its steps are no losses, until it goes up by one again.
+TEST(ScanPipeline, RepeatedSeqCountsNoLosses) {
+  PipelineRun run{Drive()};
+  run.statics(0.0);
+  run.tfUntil(0.05);
+  double t = 0.1;
+  const auto scanWithSeq = [&](std::uint32_t seq) {
+    const auto scan = run.drive.scanAt(t);
+    scan->header.seq = seq;
+    run.pipeline.add(scan, t + 0.025);
+    run.tfUntil(t + 0.05);
+    t += 0.025;
+  };
+  for (const std::uint32_t seq : {5u, 5u, 7u, 7u, 9u, 9u, 12u})
+    scanWithSeq(seq);
+  EXPECT_EQ(run.pipeline.counters().lost_upstream, 0u);
+  for (const std::uint32_t seq : {13u, 14u, 17u})  // numbering again: 15 and 16 lost
+    scanWithSeq(seq);
+  EXPECT_EQ(run.pipeline.counters().lost_upstream, 2u);
+  EXPECT_EQ(run.pipeline.counters().published, 10u);
+}
+
+// A recording (Waiting::kRecording) whose tf was recorded 1.5 s after the scans it covers: each scan
+// waits until tf passes its last beam, whatever tf_timeout and queue_size say, and is corrected onto
+// the true walls. The first scan starts before tf does and the last ends after it: each is dropped
+// alone with its own cause, neither holds back the others.
+TEST(ScanPipeline, RecordingWaitsForLateTfAndDecidesEachScanAlone) {
+  ros_adapter::DeskewParams params;
+  params.tf_timeout = 0.2;
+  params.queue_size = 10;
+  PipelineRun run(Drive(), params, "", ros_adapter::Waiting::kRecording);
+  constexpr double kLag = 1.5;  // [s] tf recorded this long after its stamp
+  constexpr int kScans = 40;    // [0, 1] s at 40 Hz
+  run.statics(0.0);
+  double tf_stamp = 0.02;  // tf begins inside the first scan [0, 0.025] and ends inside the last
+  std::size_t most_waiting = 0;
+  for (int k = 0; k < kScans; ++k) {
+    const double start = 0.025 * k;
+    for (; tf_stamp + kLag <= start + 0.025 && tf_stamp < 0.99; tf_stamp += kTfPeriod)
+      run.pipeline.addTransforms({run.drive.motionAt(tf_stamp)}, false, tf_stamp + kLag);
+    run.pipeline.add(run.drive.scanAt(start), start + 0.025);
+    run.pipeline.expire(start + 0.025);
+    most_waiting = std::max(most_waiting, run.pipeline.waiting());
+  }
+  for (; tf_stamp < 0.99; tf_stamp += kTfPeriod) {
+    run.pipeline.addTransforms({run.drive.motionAt(tf_stamp)}, false, tf_stamp + kLag);
+    run.pipeline.expire(tf_stamp + kLag);
+  }
+  EXPECT_GT(most_waiting, static_cast<std::size_t>(params.queue_size));  // 1.5 s of scans wait
+  EXPECT_EQ(run.pipeline.counters().published, static_cast<std::uint64_t>(kScans - 2));
+  EXPECT_EQ(run.pipeline.counters().dropped_tf, 1u);  // the first; the last still waits for tf
+  run.pipeline.flush();
+  const PipelineCounters& counters = run.pipeline.counters();
+  EXPECT_EQ(counters.published, static_cast<std::uint64_t>(kScans - 2));
+  EXPECT_EQ(counters.dropped_tf, 2u);
+  EXPECT_EQ(counters.dropped_queue, 0u);
+  const std::map<std::string, std::uint64_t> causes{{"tf began after the sweep's start", 1},
+                                                    {"tf never reached the sweep's end", 1}};
+  EXPECT_EQ(counters.dropped_by_cause, causes);
+  EXPECT_LT(rms(run.cloudDistances()), 1e-3);
+  EXPECT_EQ(run.pipeline.waiting(), 0u);
+}
+
+// A recording's scans whose tf never comes wait at most kRecordedTfWait of record time (tf that stopped:
+// the memory of a long bag stays bounded), then are dropped, each with its cause.
+TEST(ScanPipeline, RecordingGivesUpOnTfThatStopped) {
+  PipelineRun run(Drive(), {}, "", ros_adapter::Waiting::kRecording);
+  run.statics(0.0);
+  run.tfUntil(0.5);
+  for (int k = 0; k < 200; ++k)
+    run.pipeline.add(run.drive.scanAt(0.6 + 0.025 * k), 0.625 + 0.025 * k);
+  EXPECT_EQ(run.pipeline.waiting(), 200u);
+  run.pipeline.expire(0.625 + ScanPipeline::kRecordedTfWait + 0.01);  // the first has waited that long
+  EXPECT_EQ(run.pipeline.waiting(), 199u);
+  run.pipeline.expire(10.0 + ScanPipeline::kRecordedTfWait);
+  EXPECT_EQ(run.pipeline.waiting(), 0u);
+  EXPECT_EQ(run.pipeline.counters().dropped_tf, 200u);
+  EXPECT_EQ(run.pipeline.counters().dropped_by_cause.at("tf never reached the sweep's end"), 200u);
+  EXPECT_TRUE(holds(lastSaid(run, PipelineEvent::kTfFailure), "(waited 30 s of record time)"));
 }
 
 }  // namespace

@@ -13,7 +13,8 @@ namespace lidar_deskew::eval {
 /// The robust point-to-line distance (core::pairDistance) over every overlapping pair of scans
 /// (core::overlappingPairs: up to 8 earlier partners per scan within 10 s and 3 m), for the raw
 /// scans of `scan_topic` (every beam at header.stamp) and for their corrected versions on
-/// `corrected_topic` (paired by header.seq, placed at their own stamp, the reference time); the same
+/// `corrected_topic` (paired by stamp and order: each raw scan with the corrected one stamped at its
+/// reference time under `params`, in its frame; placed at their own stamp, the reference time); the same
 /// pairs for both, chosen on the corrected scans. Also over the pairs in which either scan turns at
 /// `turning_rate` [rad/s] or faster. tf and the mount come from the bag through the live node's rules
 /// (eval::loadRecordedTf). Smaller is more consistent.

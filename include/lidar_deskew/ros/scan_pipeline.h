@@ -10,6 +10,7 @@
 #include <cstdint>
 #include <deque>
 #include <functional>
+#include <map>
 #include <optional>
 #include <string>
 #include <vector>
@@ -42,8 +43,13 @@ struct PipelineCounters {
   /// publisher of stale tf): left out, the tf cache kept.
   std::uint64_t stale_tf = 0;
   /// Scans lost before the pipeline saw them (a driver's, the network's or roscpp's input queue), from
-  /// gaps in header.seq; 0 when the driver leaves seq unset.
+  /// gaps in header.seq; 0 when the driver leaves seq unset (0) or repeats it.
   std::uint64_t lost_upstream = 0;
+  /// Every scan dropped (invalid, mount, queue, tf) by its cause ("tf never reached the sweep's end"):
+  /// short, fixed texts, one per kind of cause; the reports give each scan's details.
+  std::map<std::string, std::uint64_t> dropped_by_cause;
+  /// Every scan passed through uncorrected (on_tf_failure: pass_through) by its cause.
+  std::map<std::string, std::uint64_t> passed_by_cause;
 };
 
 /// The counters by the names the node's diagnostics and deskew_bag's summary both show them.
@@ -63,6 +69,20 @@ enum class PipelineEvent {
   kBadTransform,   ///< a transform was refused (warning)
   kStaleTf,        ///< stale /tf transforms left out (warning, once)
   kTwoParents,     ///< a frame has two parents on /tf (warning, once per frame)
+};
+
+/// How long a scan waits for tf (docs/DESIGN.md §2).
+enum class Waiting {
+  /// Live: until tf covers the sweep or tf_timeout has passed on the owner's clock; scans are served in
+  /// arrival order (a waiting scan holds back those behind it); at most queue_size wait.
+  kTimeout,
+  /// Offline (a recording, fed in record order): until tf's newest stamp on the fixed -> base chain
+  /// passes the sweep's last beam. Then it is served, or failed alone with its cause when tf does not
+  /// cover it (tf no longer holds its start, tf began after it); a scan does not hold back those
+  /// behind it. Neither tf_timeout nor queue_size drops a scan tf will cover: a scan still waiting
+  /// after kRecordedTfWait (or tf_timeout, if longer) on the owner's clock fails (tf stopped, or
+  /// never comes: this bounds the memory of a long recording), and flush() decides every scan alone.
+  kRecording,
 };
 
 /// A sweep's outputs, handed to the owner.
@@ -88,9 +108,15 @@ class SweepPipeline {
   using Publish = std::function<void(const Result&)>;
   using Report = std::function<void(PipelineEvent, const std::string&)>;
 
+  /// [s] Waiting::kRecording: the longest a scan waits on the owner's clock (record time) for tf that
+  /// does not come, unless tf_timeout is longer.
+  static constexpr double kRecordedTfWait = 30.0;
+
   /// Throws core::InvalidInput for invalid parameters. `tf_cache_time` [s] of dynamic tf kept (at
-  /// least tf_timeout + max_sweep_duration + 1 s, so a waiting scan's tf is never forgotten).
-  SweepPipeline(const DeskewParams& params, Publish publish, Report report, double tf_cache_time = 10.0);
+  /// least the longest wait + max_sweep_duration + 1 s, so a waiting scan's tf is never forgotten;
+  /// the longest wait is tf_timeout, or with Waiting::kRecording kRecordedTfWait if longer).
+  SweepPipeline(const DeskewParams& params, Publish publish, Report report, double tf_cache_time = 10.0,
+                Waiting waiting = Waiting::kTimeout);
   SweepPipeline(const SweepPipeline&) = delete;  // its tf feed reports to `this`
   SweepPipeline& operator=(const SweepPipeline&) = delete;
 
@@ -102,14 +128,18 @@ class SweepPipeline {
   /// A scan arriving at `now` [s]: checked (one stamped 0, unset, is dropped as invalid), queued,
   /// served if tf already covers it. `id` comes back with its result.
   void add(const typename Message::ConstPtr& message, double now, std::uint64_t id = 0);
-  /// Serves the scans tf covers, in arrival order (a waiting scan holds back those behind it). A scan
-  /// whose times tf cannot take (TfFeed::Coverage::kNever: far from tf's time line) is dropped as
-  /// invalid when it reaches the head; none is served while tf went back undecided (TfFeed::jumpPending).
+  /// Serves the scans tf covers. Waiting::kTimeout: in arrival order (a waiting scan holds back those
+  /// behind it); a scan whose times tf cannot take (TfFeed::Coverage::kNever: far from tf's time
+  /// line) is dropped as invalid when it reaches the head. Waiting::kRecording: each scan alone, once
+  /// tf's newest passes its last beam (served, or failed with its cause), kNever ones at once. None
+  /// is served while tf went back undecided (TfFeed::jumpPending).
   void serveReady(double now);
-  /// The scans that have waited longer than tf_timeout at `now` [s]: extrapolated when
-  /// max_extrapolation allows, else failed (dropped or passed through).
+  /// The scans that have waited too long at `now` [s] (tf_timeout; Waiting::kRecording: the longer of
+  /// it and kRecordedTfWait): extrapolated when max_extrapolation allows, else failed (dropped or
+  /// passed through).
   void expire(double now);
-  /// Fails every waiting scan (nothing more will come: the end of a bag).
+  /// Nothing more will come (the end of a bag): decides every waiting scan alone, serving those tf
+  /// covers and failing each of the others with its own cause.
   void flush();
 
   /// Takes the parameters that may change while running (DeskewParams::reconfigurableNames) from
@@ -127,6 +157,7 @@ class SweepPipeline {
 
   const PipelineCounters& counters() const { return counters_; }
   std::size_t waiting() const { return pending_.size(); }
+  Waiting waitingRule() const { return waiting_; }
   const DeskewParams& params() const { return params_; }
   const TfFeed& tf() const { return tf_; }
 
@@ -142,21 +173,32 @@ class SweepPipeline {
   /// reset seen before any tf of the new time line, or alone), unless tf's stamps went back just before.
   void observeClock(double now);
   /// Fails every waiting scan (dropped without a mount, else per on_tf_failure): their tf will not come.
-  /// An empty `reason`: each with the cause TfFeed finds.
   void failWaiting(const std::string& reason);
+  /// Waiting::kRecording's serveReady: each scan decided alone once tf's newest passes its end.
+  void serveRecorded(double now);
+  /// [s] How long a scan waits for tf that does not come.
+  double longestWait() const;
   /// Drops a sweep whose stamp tf cannot take, counted as invalid.
   void dropInvalid(const Pending& pending, const std::string& why);
   /// Drops a sweep without its mount; `error` (tf2's) or else the cause TfFeed finds.
   void dropForMount(const Pending& pending, const std::string& error);
   /// The cause of tf not covering the sweep (TfFeed::whyNotCovered).
   std::string whyNotCovered(const Pending& pending) const;
+  /// The kind of that cause, a short fixed text for the counts by cause: tf went back undecided, no tf
+  /// between the frames, tf short of the sweep's end, tf not holding its start.
+  std::string causeNotCovered(const Pending& pending) const;
   /// tf ends inside the sweep, at most max_extrapolation before its last beam.
   bool extrapolatable(const Pending& pending) const;
   void correct(const Pending& pending, bool extrapolate, double now);
-  void fail(const Pending& pending, const std::string& reason);
+  /// Drops the sweep or passes it through (on_tf_failure), counted under `cause` (a short fixed text),
+  /// reported with `reason` (its details).
+  void fail(const Pending& pending, const std::string& cause, const std::string& reason);
+  /// A sweep not covered by tf: fail() with its cause found, `suffix` added to the report.
+  void failNotCovered(const Pending& pending, const std::string& suffix);
   void onTfEvent(TfEvent event, const std::string& text);
 
   DeskewParams params_;
+  Waiting waiting_;
   Publish publish_;
   Corrected corrected_;
   Report report_;
@@ -165,6 +207,8 @@ class SweepPipeline {
   std::deque<Pending> pending_;
   PipelineCounters counters_;
   std::optional<std::uint32_t> last_seq_;  // header.seq of the last scan received
+  bool seq_repeated_ = false;              // it repeated, and has not gone up by one since
+  core::TimeNs tf_began_ = 0;  // [ns] the first time tf answered fixed -> base at (since a time jump)
   std::optional<double> clock_;            // [s] the newest `now` given (since the last time jump)
   bool clock_follows_tf_ = false;          // tf went back; the clock going back next is the same jump
   double tf_jump_clock_ = 0.0;             // [s] the clock when tf went back (the mark expires 2 s on)
