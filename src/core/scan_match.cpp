@@ -101,6 +101,33 @@ double quantile(std::vector<double> values, double share) {
   return values[below] + (position - static_cast<double>(below)) * (values[above] - values[below]);
 }
 
+// The least-squares scale through 0 of `matched` on `told`, and their correlation (NaN when undefined).
+void fitRotation(const std::vector<double>& told, const std::vector<double>& matched, double& scale,
+                 double& correlation) {
+  scale = correlation = kNaN;
+  if (matched.empty())
+    return;
+  double tt = 0.0, tm = 0.0, mean_t = 0.0, mean_m = 0.0;
+  for (std::size_t k = 0; k < matched.size(); ++k) {
+    tt += told[k] * told[k];
+    tm += told[k] * matched[k];
+    mean_t += told[k];
+    mean_m += matched[k];
+  }
+  mean_t /= matched.size();
+  mean_m /= matched.size();
+  double vt = 0.0, vm = 0.0, covariance = 0.0;
+  for (std::size_t k = 0; k < matched.size(); ++k) {
+    vt += (told[k] - mean_t) * (told[k] - mean_t);
+    vm += (matched[k] - mean_m) * (matched[k] - mean_m);
+    covariance += (told[k] - mean_t) * (matched[k] - mean_m);
+  }
+  if (tt > 0.0)
+    scale = tm / tt;
+  if (vt > 0.0 && vm > 0.0)
+    correlation = covariance / std::sqrt(vt * vm);
+}
+
 PlacedScan inOwnFrame(const PlanarScan& scan) {
   try {
     return placeRaw(scan, mrpt::poses::CPose3D(), scan.stamp);
@@ -193,7 +220,6 @@ ShapeCheck::ShapeCheck(std::vector<PlanarScan> scans, const mrpt::poses::CPose3D
   const TimeNs window = secondsToNs(config_.max_interval);
   // Consecutive raw scans, matched with no guess: the rotation the scans show.
   to_previous_.assign(count, ScanMatch());
-  std::vector<double> matched, told;
   std::vector<double> rates(count, kNaN);
   std::vector<double> rate_sum(count, 0.0);
   std::vector<int> rate_count(count, 0);
@@ -209,48 +235,13 @@ ShapeCheck::ShapeCheck(std::vector<PlanarScan> scans, const mrpt::poses::CPose3D
       rate_sum[k] += rate;
       ++rate_count[k];
     }
-    try {
-      const mrpt::poses::CPose3D earlier = motion_.basePose(scans_[i - 1].stamp) + mount_;
-      const mrpt::poses::CPose3D later = motion_.basePose(scans_[i].stamp) + mount_;
-      const double tf_yaw = wrapAngle((later - earlier).yaw());
-      matched.push_back(match.pose.yaw);
-      told.push_back(tf_yaw);
-      const double turn = config_.turning_rate * nsToSeconds(interval);
-      if (std::abs(tf_yaw) >= turn || std::abs(match.pose.yaw) >= turn)
-        ++rotation_.turning_pairs;
-    } catch (const MotionUnavailable&) {
-      // tf does not cover this pair: the match still chains pairs
-    }
     to_previous_[i] = match;
   }
   for (std::size_t i = 0; i < count; ++i) {
     if (rate_count[i] > 0)
       rates[i] = rate_sum[i] / rate_count[i];
   }
-  // tf's rotation against the matched one: scale through 0 and correlation.
-  rotation_.pairs = matched.size();
-  rotation_.scale = rotation_.correlation = kNaN;
-  if (rotation_.turning_pairs > 0) {
-    double tt = 0.0, tm = 0.0, mean_t = 0.0, mean_m = 0.0;
-    for (std::size_t k = 0; k < matched.size(); ++k) {
-      tt += told[k] * told[k];
-      tm += told[k] * matched[k];
-      mean_t += told[k];
-      mean_m += matched[k];
-    }
-    mean_t /= matched.size();
-    mean_m /= matched.size();
-    double vt = 0.0, vm = 0.0, cov = 0.0;
-    for (std::size_t k = 0; k < matched.size(); ++k) {
-      vt += (told[k] - mean_t) * (told[k] - mean_t);
-      vm += (matched[k] - mean_m) * (matched[k] - mean_m);
-      cov += (told[k] - mean_t) * (matched[k] - mean_m);
-    }
-    if (tt > 0.0)
-      rotation_.scale = tm / tt;
-    if (vt > 0.0 && vm > 0.0)
-      rotation_.correlation = cov / std::sqrt(vt * vm);
-  }
+  rotation_ = rotation(TimingConfig());
   // Pairs a short time apart whose turn rates differ, linked by a chain of consecutive matches (the
   // guess: odometry does not enter).
   std::vector<std::pair<std::size_t, std::size_t>> candidates;
@@ -281,6 +272,73 @@ ShapeCheck::ShapeCheck(std::vector<PlanarScan> scans, const mrpt::poses::CPose3D
     pairs_.emplace_back(e, l);
     raw_matches_.push_back(match);
   }
+}
+
+TimeNs ShapeCheck::firstBeamTime(std::size_t i, const TimingConfig& timing) const {
+  try {
+    return resolveTiming(scans_[i], timing).earliestBeamTime();
+  } catch (const InvalidInput&) {
+    return scans_[i].stamp + secondsToNs(timing.time_offset);  // no period: the stamp as the timing moves it
+  }
+}
+
+RotationAgreement ShapeCheck::rotation(const TimingConfig& timing) const {
+  RotationAgreement result;
+  result.scale = result.correlation = result.lag = result.lag_scale = result.lag_correlation = kNaN;
+  std::vector<std::pair<TimeNs, TimeNs>> times;
+  std::vector<double> matched;
+  for (std::size_t i = 1; i < scans_.size(); ++i) {
+    if (!to_previous_[i].valid)
+      continue;
+    times.emplace_back(firstBeamTime(i - 1, timing), firstBeamTime(i, timing));
+    matched.push_back(to_previous_[i].pose.yaw);
+  }
+  // tf's rotation between the scans' times + lag, beside the matched one (pairs tf does not cover left
+  // out).
+  std::vector<double> told, used, intervals;
+  const auto compare = [&](TimeNs lag) {
+    told.clear();
+    used.clear();
+    intervals.clear();
+    for (std::size_t m = 0; m < matched.size(); ++m) {
+      try {
+        const mrpt::poses::CPose3D earlier = motion_.basePose(times[m].first + lag) + mount_;
+        const mrpt::poses::CPose3D later = motion_.basePose(times[m].second + lag) + mount_;
+        told.push_back(wrapAngle((later - earlier).yaw()));
+        used.push_back(matched[m]);
+        intervals.push_back(nsToSeconds(times[m].second - times[m].first));
+      } catch (const MotionUnavailable&) {
+      }
+    }
+  };
+  compare(0);
+  result.pairs = used.size();
+  for (std::size_t k = 0; k < used.size(); ++k) {
+    const double turn = config_.turning_rate * intervals[k];
+    if (std::abs(told[k]) >= turn || std::abs(used[k]) >= turn)
+      ++result.turning_pairs;
+  }
+  if (result.turning_pairs == 0)
+    return result;
+  fitRotation(told, used, result.scale, result.correlation);
+  // The same with tf shifted in time, where it correlates best; shifts that lose more than a tenth of
+  // the pairs off tf's ends are not compared.
+  const int lags =
+      config_.lag_step > 0.0 ? static_cast<int>(std::floor(config_.max_lag / config_.lag_step)) : 0;
+  for (int k = -lags; k <= lags; ++k) {
+    const TimeNs lag = secondsToNs(k * config_.lag_step);
+    compare(lag);
+    if (10 * used.size() < 9 * result.pairs)
+      continue;
+    double scale, correlation;
+    fitRotation(told, used, scale, correlation);
+    if (std::isfinite(correlation) && !(correlation <= result.lag_correlation)) {
+      result.lag = nsToSeconds(lag);
+      result.lag_scale = scale;
+      result.lag_correlation = correlation;
+    }
+  }
+  return result;
 }
 
 ShapeRatio ShapeCheck::shapes(const TimingConfig& timing, const DeskewConfig& deskew) const {
@@ -338,7 +396,21 @@ std::vector<std::string> shapeWarnings(const ShapeRatio& shapes, const RotationA
                     "tf's rotation does not fit the scans: scan matching sees %.2fx tf's rotation between "
                     "consecutive scans (correlation %.2f, %zu pairs, %zu turning)",
                     rotation.scale, rotation.correlation, rotation.pairs, rotation.turning_pairs);
-      warnings.emplace_back(text);
+      std::string warning = text;
+      // When tf shifted in time fits, the disagreement is a time offset between tf and the scans.
+      const bool lag_fits = std::isfinite(rotation.lag_scale) &&
+                            rotation.lag_scale <= config.max_scale_error &&
+                            rotation.lag_scale >= 1.0 / config.max_scale_error &&
+                            rotation.lag_correlation >= config.min_correlation;
+      if (lag_fits && std::abs(rotation.lag) >= 0.5 * config.lag_step) {
+        std::snprintf(
+            text, sizeof text,
+            "; tf read at the scans' times %+.0f ms fits (%.2fx, correlation %.2f): the scans' times "
+            "and tf's are off by that much (time_offset; deskew_calibrate)",
+            rotation.lag * 1e3, rotation.lag_scale, rotation.lag_correlation);
+        warning += text;
+      }
+      warnings.push_back(warning);
     }
   }
   if (shapes.pairs >= config.min_pairs && shapes.ratio > config.max_ratio) {

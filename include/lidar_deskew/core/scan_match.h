@@ -76,6 +76,8 @@ struct ShapeConfig {
   double min_overlap = 0.5;          ///< a pair counts when both matches overlap this much, raw and corrected
   double turning_rate = 0.3;         ///< [rad/s] consecutive scans turn when tf or the match says so
   std::size_t min_pairs = 10;        ///< fewer pairs (or turning consecutive pairs): no verdict
+  double max_lag = 0.5;              ///< [s] tf's rotation is also compared shifted by up to this ...
+  double lag_step = 0.01;            ///< [s] ... in these steps
   /// Verdicts: tf's rotation does not fit when the scale is outside [1/max_scale_error, max_scale_error]
   /// or the correlation below min_correlation; correction makes shapes worse when the ratio exceeds
   /// max_ratio.
@@ -100,6 +102,11 @@ struct RotationAgreement {
   std::size_t turning_pairs = 0;  ///< of which tf or the match turns at ShapeConfig::turning_rate or more
   double scale = 0.0;             ///< matched = scale x tf (through 0); NaN without turning pairs
   double correlation = 0.0;       ///< Pearson's, over the matched pairs; NaN without turning pairs
+  /// [s] tf shifted by this (its rotation between stamp + lag), within +-ShapeConfig::max_lag, correlates
+  /// best with the matched rotation: a clock or timing offset between tf and the scans lowers the
+  /// scale and the correlation at lag 0, not at this one. NaN without turning pairs.
+  double lag = 0.0;
+  double lag_scale = 0.0, lag_correlation = 0.0;  ///< scale and correlation at that lag
 };
 
 /// The scans, the motion and the mount, with the consecutive matches done once; shapes under any timing.
@@ -111,13 +118,19 @@ class ShapeCheck {
   /// the pairs by the matched turn rates. Throws InvalidInput when the scans are not sorted.
   ShapeCheck(std::vector<PlanarScan> scans, const mrpt::poses::CPose3D& mount, const MotionSource& motion,
              const ShapeConfig& config = ShapeConfig());
+  /// The rotation agreement with tf's rotation between the consecutive scans' stamps.
   const RotationAgreement& rotation() const { return rotation_; }
+  /// ... between their first beams' times under `timing` (a time_offset moves them; a scan whose
+  /// timing cannot be resolved: its stamp + time_offset).
+  RotationAgreement rotation(const TimingConfig& timing) const;
   /// The pairs (earlier, later) the shape ratio uses.
   const std::vector<std::pair<std::size_t, std::size_t>>& pairs() const { return pairs_; }
   /// The shape ratio with the scans corrected under `timing` and `deskew`.
   ShapeRatio shapes(const TimingConfig& timing, const DeskewConfig& deskew = DeskewConfig()) const;
 
  private:
+  TimeNs firstBeamTime(std::size_t i, const TimingConfig& timing) const;
+
   std::vector<PlanarScan> scans_;
   mrpt::poses::CPose3D mount_;
   const MotionSource& motion_;
