@@ -274,9 +274,10 @@ ShapeCheck::ShapeCheck(std::vector<PlanarScan> scans, const mrpt::poses::CPose3D
   }
 }
 
-TimeNs ShapeCheck::firstBeamTime(std::size_t i, const TimingConfig& timing) const {
+TimeNs ShapeCheck::middleTime(std::size_t i, const TimingConfig& timing) const {
   try {
-    return resolveTiming(scans_[i], timing).earliestBeamTime();
+    const BeamTiming beams = resolveTiming(scans_[i], timing);
+    return beams.earliestBeamTime() + (beams.latestBeamTime() - beams.earliestBeamTime()) / 2;
   } catch (const InvalidInput&) {
     return scans_[i].stamp + secondsToNs(timing.time_offset);  // no period: the stamp as the timing moves it
   }
@@ -290,7 +291,7 @@ RotationAgreement ShapeCheck::rotation(const TimingConfig& timing) const {
   for (std::size_t i = 1; i < scans_.size(); ++i) {
     if (!to_previous_[i].valid)
       continue;
-    times.emplace_back(firstBeamTime(i - 1, timing), firstBeamTime(i, timing));
+    times.emplace_back(middleTime(i - 1, timing), middleTime(i, timing));
     matched.push_back(to_previous_[i].pose.yaw);
   }
   // tf's rotation between the scans' times + lag, beside the matched one (pairs tf does not cover left

@@ -72,13 +72,14 @@ struct Drive {
 };
 
 /// The drive's scans with range noise (`reversed`: beams measured against the index order the
-/// message claims) and odometry at 50 Hz whose yaw increments are the true ones x `yaw_scale`.
+/// message claims; stamps `stamp_delay` [s] after the first beam) and odometry at 50 Hz whose yaw
+/// increments are the true ones x `yaw_scale`.
 struct Recording {
   std::vector<PlanarScan> scans;
   PoseSamples motion;
   mrpt::poses::CPose3D mount;
 };
-Recording record(const Drive& drive, bool reversed, double yaw_scale) {
+Recording record(const Drive& drive, bool reversed, double yaw_scale, double stamp_delay = 0.0) {
   Recording recording;
   const sim::World world = sim::World::hall();
   sim::LidarModel lidar = drive.lidar;
@@ -97,6 +98,7 @@ Recording record(const Drive& drive, bool reversed, double yaw_scale) {
       scan.angle_increment = -scan.angle_increment;
       scan.time_increment = std::abs(scan.time_increment);
     }
+    scan.stamp += secondsToNs(stamp_delay);
     recording.scans.push_back(scan);
   }
   sim::Pose2 odometry = drive.trajectory.pose(-1.0);
@@ -117,10 +119,10 @@ TEST(ShapeCheck, RightTimingSharpensShapesWrongBeamOrderBlursThem) {
   const ShapeRatio shapes = check.shapes(TimingConfig());
   ASSERT_GE(shapes.pairs, 30u);
   EXPECT_LT(shapes.ratio, 0.6);
-  // Perfect odometry: the matched rotation is tf's (raw scans whose turn rates differ are sheared
-  // differently, which blurs it a little: 0.976 and 0.979 here).
-  EXPECT_NEAR(check.rotation().scale, 1.0, 0.05);
-  EXPECT_GT(check.rotation().correlation, 0.95);
+  // Perfect odometry: the matched rotation is tf's between the sweeps' middles, at lag 0.
+  EXPECT_NEAR(check.rotation().scale, 1.0, 0.03);
+  EXPECT_GT(check.rotation().correlation, 0.99);
+  EXPECT_NEAR(check.rotation().lag, 0.0, 0.015);
   EXPECT_GE(check.rotation().turning_pairs, 30u);
   EXPECT_TRUE(shapeWarnings(shapes, check.rotation()).empty());
 
@@ -143,8 +145,8 @@ TEST(ShapeCheck, SeesOdometryThatTurnsTooLittle) {
   const Recording recording = record(drive, false, 0.4);
   const ShapeCheck check(recording.scans, recording.mount, recording.motion);
   // Scan matching sees the true rotation: 1 / 0.4 of tf's.
-  EXPECT_NEAR(check.rotation().scale, 2.5, 0.15);
-  EXPECT_GT(check.rotation().correlation, 0.95);
+  EXPECT_NEAR(check.rotation().scale, 2.5, 0.1);
+  EXPECT_GT(check.rotation().correlation, 0.99);
   const ShapeRatio shapes = check.shapes(TimingConfig());
   const std::vector<std::string> warnings = shapeWarnings(shapes, check.rotation());
   ASSERT_GE(warnings.size(), 1u);
@@ -152,6 +154,36 @@ TEST(ShapeCheck, SeesOdometryThatTurnsTooLittle) {
   std::snprintf(figure, sizeof figure, "scan matching sees %.2fx tf's rotation", check.rotation().scale);
   EXPECT_EQ(warnings[0].find("tf's rotation does not fit the scans"), 0u) << warnings[0];
   EXPECT_NE(warnings[0].find(figure), std::string::npos) << warnings[0];
+}
+
+TEST(ShapeCheck, SeesWhenTfFitsOnlyAtAnotherTime) {
+  // Stamped with the last beam, the message claiming the first: tf's rotation fits the scans a sweep
+  // earlier than the stamps say (124.7 ms: 359 beams); with stamp_at end it fits at lag 0.
+  const Drive drive;
+  const double sweep = 359.0 / (360.0 * drive.lidar.rate);
+  const Recording at_end = record(drive, false, 1.0, sweep);
+  const ShapeCheck check(at_end.scans, at_end.mount, at_end.motion);
+  EXPECT_NEAR(check.rotation().lag, -sweep, 0.006);
+  EXPECT_NEAR(check.rotation().lag_scale, 1.0, 0.03);
+  EXPECT_GT(check.rotation().lag_correlation, 0.99);
+  TimingConfig end;
+  end.stamp_at = StampAt::kEnd;
+  const RotationAgreement fits = check.rotation(end);
+  EXPECT_NEAR(fits.lag, 0.0, 0.006);
+  EXPECT_NEAR(fits.scale, 1.0, 0.03);
+  EXPECT_GT(fits.correlation, 0.99);
+  EXPECT_TRUE(shapeWarnings(check.shapes(end), fits).empty());
+
+  // Stamps 400 ms late: at the stamps tf's rotation does not fit the scans; 400 ms earlier it does,
+  // and the warning says so.
+  const Recording late = record(drive, false, 1.0, 0.4);
+  const ShapeCheck late_check(late.scans, late.mount, late.motion);
+  EXPECT_NEAR(late_check.rotation().lag, -0.4, 0.006);
+  EXPECT_GT(late_check.rotation().lag_correlation, 0.99);
+  const std::vector<std::string> warnings =
+      shapeWarnings(late_check.shapes(TimingConfig()), late_check.rotation());
+  ASSERT_GE(warnings.size(), 1u);
+  EXPECT_NE(warnings[0].find("tf read at the scans' times -400 ms fits"), std::string::npos) << warnings[0];
 }
 
 }  // namespace

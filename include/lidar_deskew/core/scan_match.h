@@ -96,14 +96,15 @@ struct ShapeRatio {
 };
 
 /// The rotation scan matching sees between consecutive raw scans against tf's (the laser's yaw between
-/// their stamps): the least-squares scale of matched on tf, and their correlation.
+/// the middles of their sweeps, where a raw scan's rotation is seen): the least-squares scale of
+/// matched on tf, and their correlation.
 struct RotationAgreement {
   std::size_t pairs = 0;          ///< consecutive pairs matched
   std::size_t turning_pairs = 0;  ///< of which tf or the match turns at ShapeConfig::turning_rate or more
   double scale = 0.0;             ///< matched = scale x tf (through 0); NaN without turning pairs
   double correlation = 0.0;       ///< Pearson's, over the matched pairs; NaN without turning pairs
-  /// [s] tf shifted by this (its rotation between stamp + lag), within +-ShapeConfig::max_lag, correlates
-  /// best with the matched rotation: a clock or timing offset between tf and the scans lowers the
+  /// [s] tf shifted by this (its rotation between those times + lag), within +-ShapeConfig::max_lag,
+  /// correlates best with the matched rotation: a clock or timing offset between tf and the scans lowers the
   /// scale and the correlation at lag 0, not at this one. NaN without turning pairs.
   double lag = 0.0;
   double lag_scale = 0.0, lag_correlation = 0.0;  ///< scale and correlation at that lag
@@ -114,14 +115,15 @@ class ShapeCheck {
  public:
   /// `scans` sorted by stamp; `motion` the base's (fixed -> base), `mount` base -> laser. Matches each
   /// scan to the one before (less than max_interval earlier), raw, without any guess (so tf does not
-  /// enter), compares their rotations with tf's between the stamps (where tf covers both), and chooses
-  /// the pairs by the matched turn rates. Throws InvalidInput when the scans are not sorted.
+  /// enter), compares their rotations with tf's (where tf covers both) under the message's timing, and
+  /// chooses the pairs by the matched turn rates. Throws InvalidInput when the scans are not sorted.
   ShapeCheck(std::vector<PlanarScan> scans, const mrpt::poses::CPose3D& mount, const MotionSource& motion,
              const ShapeConfig& config = ShapeConfig());
-  /// The rotation agreement with tf's rotation between the consecutive scans' stamps.
+  /// The rotation agreement with tf's rotation between the middles of consecutive scans' sweeps under
+  /// the message's own timing (TimingConfig()).
   const RotationAgreement& rotation() const { return rotation_; }
-  /// ... between their first beams' times under `timing` (a time_offset moves them; a scan whose
-  /// timing cannot be resolved: its stamp + time_offset).
+  /// ... under `timing` (a time_offset moves the sweeps; a scan whose timing cannot be resolved: its
+  /// stamp + time_offset).
   RotationAgreement rotation(const TimingConfig& timing) const;
   /// The pairs (earlier, later) the shape ratio uses.
   const std::vector<std::pair<std::size_t, std::size_t>>& pairs() const { return pairs_; }
@@ -129,7 +131,8 @@ class ShapeCheck {
   ShapeRatio shapes(const TimingConfig& timing, const DeskewConfig& deskew = DeskewConfig()) const;
 
  private:
-  TimeNs firstBeamTime(std::size_t i, const TimingConfig& timing) const;
+  // [ns] the middle of scan i's sweep under `timing`: where a raw scan's rotation is seen
+  TimeNs middleTime(std::size_t i, const TimingConfig& timing) const;
 
   std::vector<PlanarScan> scans_;
   mrpt::poses::CPose3D mount_;
