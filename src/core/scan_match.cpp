@@ -424,4 +424,15 @@ std::vector<std::string> shapeWarnings(const ShapeRatio& shapes, const RotationA
   return warnings;
 }
 
+ShapeVerdict checkShapes(std::vector<PlanarScan> scans, const mrpt::poses::CPose3D& mount,
+                         const MotionSource& motion, const TimingConfig& timing, const DeskewConfig& deskew,
+                         const ShapeConfig& config) {
+  const ShapeCheck check(std::move(scans), mount, motion, config);
+  ShapeVerdict verdict;
+  verdict.shapes = check.shapes(timing, deskew);
+  verdict.rotation = check.rotation(timing);
+  verdict.warnings = shapeWarnings(verdict.shapes, verdict.rotation, config);
+  return verdict;
+}
+
 }  // namespace lidar_deskew::core

@@ -49,10 +49,11 @@ ShapeReport measureShapes(const std::string& bag_path, const std::string& scan_t
     throw std::runtime_error(bag_path + ": no laser mount: " + error);
   ShapeReport report;
   report.scans = scans.size();
-  const core::ShapeCheck check(std::move(scans), *mount, tf->motion(), config);
-  report.shapes = check.shapes(params.timing, params.deskew);
-  report.rotation = check.rotation(params.timing);
-  report.warnings = core::shapeWarnings(report.shapes, report.rotation, config);
+  core::ShapeVerdict verdict =
+      core::checkShapes(std::move(scans), *mount, tf->motion(), params.timing, params.deskew, config);
+  report.shapes = verdict.shapes;
+  report.rotation = verdict.rotation;
+  report.warnings = std::move(verdict.warnings);
   return report;
 }
 

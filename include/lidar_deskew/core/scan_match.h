@@ -153,4 +153,19 @@ class ShapeCheck {
 std::vector<std::string> shapeWarnings(const ShapeRatio& shapes, const RotationAgreement& rotation,
                                        const ShapeConfig& config = ShapeConfig());
 
+/// What checkShapes() finds: the shapes and tf's rotation under one timing, and the verdicts.
+struct ShapeVerdict {
+  ShapeRatio shapes;
+  RotationAgreement rotation;         ///< under the same timing (ShapeCheck::rotation(timing))
+  std::vector<std::string> warnings;  ///< shapeWarnings(): empty when nothing is wrong (or too few pairs)
+};
+/// One call for one timing (deskew_calibrate's check of its result before writing it): ShapeCheck over
+/// `scans` (sorted by stamp), then its shapes and rotation under `timing`, and the warnings. To score
+/// several timings on one recording, build one ShapeCheck and call shapes() per timing (the
+/// consecutive matches and the pairs are done once).
+ShapeVerdict checkShapes(std::vector<PlanarScan> scans, const mrpt::poses::CPose3D& mount,
+                         const MotionSource& motion, const TimingConfig& timing,
+                         const DeskewConfig& deskew = DeskewConfig(),
+                         const ShapeConfig& config = ShapeConfig());
+
 }  // namespace lidar_deskew::core
