@@ -13,6 +13,7 @@
 
 #include "lidar_deskew/bag/bag_deskew.h"
 #include "lidar_deskew/eval/consistency.h"
+#include "lidar_deskew/eval/shape_consistency.h"
 
 namespace {
 
@@ -43,7 +44,10 @@ void printUsage(std::FILE* to, const char* program) {
       "  --params FILE.yaml  parameters from a file, as the node's launch `params:=FILE` (e.g. one\n"
       "                      deskew_calibrate wrote); --PARAMETER options win over it\n"
       "  --consistency       print how well overlapping scans agree, raw and corrected (robust\n"
-      "                      point-to-line distance over every overlapping pair, with its spread)\n"
+      "                      point-to-line distance over every overlapping pair, with its spread),\n"
+      "                      their shapes (scans aligned by a free scan match, corrected / raw) and\n"
+      "                      whether tf's rotation fits the scans; warns where it does not or where\n"
+      "                      correction makes shapes worse\n"
       "  --consistency-figure CSV   the same, and the points of the pair turning most to CSV\n"
       "  --quiet             no notes, no progress bar\n"
       "  --help              this text\n"
@@ -223,6 +227,17 @@ int main(int argc, char** argv) {
             eval::formatConsistency(report.corrected).c_str(),
             eval::formatConsistency(report.raw_turning).c_str(),
             eval::formatConsistency(report.corrected_turning).c_str());
+        // Shapes: raw scans from the input, corrected here under the same parameters.
+        const eval::ShapeReport shapes = eval::measureShapes(options.input, topic, options.params);
+        std::printf(
+            "  %s shapes (scans up to 1.5 s apart whose turn rates differ by 0.3 rad/s or more, aligned by a "
+            "free rigid scan match):\n"
+            "    corrected / raw: %s\n"
+            "    rotation between consecutive scans, scan matching / tf: %s\n",
+            topic.c_str(), eval::formatShapes(shapes.shapes).c_str(),
+            eval::formatRotation(shapes.rotation).c_str());
+        for (const std::string& warning : shapes.warnings)
+          std::printf("  warning: %s: %s\n", topic.c_str(), warning.c_str());
       }
     }
   } catch (const bag::Interrupted& error) {

@@ -47,6 +47,15 @@ std::size_t PlacedScan::binOf(const Eigen::Vector2d& point) const {
 
 bool PlacedScan::distanceToContour(const Eigen::Vector2d& query, double radius, double& distance,
                                    double& nearest) const {
+  ContourHit hit;
+  if (!contourHit(query, radius, hit))
+    return false;
+  distance = hit.distance;
+  nearest = hit.nearest;
+  return true;
+}
+
+bool PlacedScan::contourHit(const Eigen::Vector2d& query, double radius, ContourHit& hit) const {
   if (points_.empty())
     return false;
   const auto bins = static_cast<std::ptrdiff_t>(bin_begin_.size() - 1);
@@ -65,7 +74,10 @@ bool PlacedScan::distanceToContour(const Eigen::Vector2d& query, double radius, 
   if (found < 0)
     return false;
   const Eigen::Vector2d& point = points_[found];
-  nearest = std::sqrt(best);
+  hit.point = point;
+  hit.nearest = std::sqrt(best);
+  hit.distance = hit.nearest;
+  hit.normal.setZero();
   // Contour neighbours: consecutive points closer than the join distance.
   const double join = 0.05 + 5.0 * (point - origin_).norm() * bin_width_;
   const auto joined = [&](std::ptrdiff_t other) {
@@ -74,19 +86,16 @@ bool PlacedScan::distanceToContour(const Eigen::Vector2d& query, double radius, 
   };
   const bool before = joined(found - 1);
   const bool after = joined(found + 1);
-  if (!before && !after) {
-    distance = nearest;
+  if (!before && !after)
     return true;
-  }
   const Eigen::Vector2d direction =
       (after ? points_[found + 1] : point) - (before ? points_[found - 1] : point);
   const double length = direction.norm();
-  if (length <= 0.0) {
-    distance = nearest;
+  if (length <= 0.0)
     return true;
-  }
   const Eigen::Vector2d offset = query - point;
-  distance = std::abs(direction.x() * offset.y() - direction.y() * offset.x()) / length;
+  hit.distance = std::abs(direction.x() * offset.y() - direction.y() * offset.x()) / length;
+  hit.normal = Eigen::Vector2d(-direction.y(), direction.x()) / length;
   return true;
 }
 

@@ -10,7 +10,7 @@
 //   deskew_simulate --scenario UTM-30LX/high/arc --bag out.bag --truth out.truth [--noise] [--seed N]
 //                   [--tf-rate HZ] [--tf-margin S] [--clockwise] [--duration S] [--stamp-error S |
 //                   --stamp-at-end] [--reversed] [--time-increment-factor F] [--zero-scan-time]
-//                   [--odom-noise R [--odom-seed N]]
+//                   [--odom-noise R [--odom-seed N]] [--odom-yaw-scale F]
 //   deskew_simulate --cloud-scenario VLP16/rough/arc --convention velodyne_first --bag out.bag
 //                   --truth out.truth [--noise] [--seed N] [--tf-rate HZ] [--duration S] [--latency S]
 #include <cmath>
@@ -36,7 +36,7 @@ int usage(const char* program) {
       "          [--noise] [--seed N] [--tf-rate HZ]\n"
       "          [--tf-margin S] [--clockwise] [--duration S] [--stamp-error S | --stamp-at-end]\n"
       "          [--reversed] [--time-increment-factor F] [--zero-scan-time]\n"
-      "          [--odom-noise R [--odom-seed N]]\n"
+      "          [--odom-noise R [--odom-seed N]] [--odom-yaw-scale F]\n"
       "       %s --cloud-scenario NAME --convention NAME --bag OUT.bag --truth OUT.truth [--noise]\n"
       "          [--seed N] [--tf-rate HZ] [--duration S] [--latency S]\n"
       "  --list              the planar scenarios (LaserScan on /scan): the paper's, calibration's, smooth\n"
@@ -58,6 +58,7 @@ int usage(const char* program) {
       "  --odom-noise R      odometry (/tf odom -> base_link, /odom) off by R relative per 20 ms step in\n"
       "                      x, y and yaw, a random walk away from the truth (default 0: perfect)\n"
       "  --odom-seed N       seed of the odometry noise (default 1; --seed is the range noise's)\n"
+      "  --odom-yaw-scale F  odometry reports F x the true rotation (default 1; with or without noise)\n"
       "timing faults of the /scan messages (planar scenarios only; recorded in the truth file):\n"
       "  --stamp-error S     header.stamp = true time of the earliest beam + S (time_offset = -S)\n"
       "  --stamp-at-end      stamped at the latest beam: S = (beams - 1) * true time_increment\n"
@@ -133,6 +134,9 @@ int main(int argc, char** argv) {
     } else if (arg == "--odom-noise" && has_value) {
       options.odom_noise = std::atof(argv[++a]);
       odom_noise_given = true;
+    } else if (arg == "--odom-yaw-scale" && has_value) {
+      options.odom_yaw_scale = std::atof(argv[++a]);
+      odom_noise_given = true;
     } else if (arg == "--odom-seed" && has_value) {
       options.odom_noise_seed = static_cast<unsigned>(std::strtoul(argv[++a], nullptr, 10));
       odom_noise_given = true;
@@ -169,9 +173,11 @@ int main(int argc, char** argv) {
     return 2;
   }
   if (cloud && (clockwise || tf_margin_given || odom_noise_given)) {
-    std::fprintf(stderr,
-                 "deskew_simulate: --clockwise, --tf-margin and --odom-noise are for planar scenarios "
-                 "(--scenario), not --cloud-scenario\n");
+    std::fprintf(
+        stderr,
+        "deskew_simulate: --clockwise, --tf-margin, --odom-noise and --odom-yaw-scale are for planar "
+        "scenarios "
+        "(--scenario), not --cloud-scenario\n");
     return 2;
   }
   if (!cloud && !convention_name.empty()) {
@@ -188,6 +194,10 @@ int main(int argc, char** argv) {
   }
   if (!(options.odom_noise >= 0.0) || !std::isfinite(options.odom_noise)) {
     std::fprintf(stderr, "--odom-noise must be finite and >= 0\n");
+    return 2;
+  }
+  if (!(options.odom_yaw_scale > 0.0) || !std::isfinite(options.odom_yaw_scale)) {
+    std::fprintf(stderr, "--odom-yaw-scale must be finite and > 0\n");
     return 2;
   }
   if (cloud && any_fault) {

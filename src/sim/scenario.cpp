@@ -252,6 +252,8 @@ void writeTruth(const Truth& truth, const std::string& path) {
   out << "sweep_period " << truth.sweep_period << "\n";
   out << "odom_noise " << truth.odom_noise << "\n";
   out << "odom_noise_seed " << truth.odom_noise_seed << "\n";
+  if (truth.odom_yaw_scale != 1.0)
+    out << "odom_yaw_scale " << truth.odom_yaw_scale << "\n";
   truth_text::writeMotion(out, truth.start, truth.pieces);
   for (const Segment& segment : truth.world.segments()) {
     out << "wall " << segment.a.x() << " " << segment.a.y() << " " << segment.b.x() << " " << segment.b.y()
@@ -299,6 +301,8 @@ Truth readTruth(const std::string& path) {
       return static_cast<bool>(fields >> truth.odom_noise);
     if (key == "odom_noise_seed")
       return static_cast<bool>(fields >> truth.odom_noise_seed);
+    if (key == "odom_yaw_scale")
+      return static_cast<bool>(fields >> truth.odom_yaw_scale);
     if (key == "wall") {
       double ax, ay, bx, by;
       const bool ok = static_cast<bool>(fields >> ax >> ay >> bx >> by);

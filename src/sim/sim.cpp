@@ -235,10 +235,12 @@ double PiecewiseTrajectory::speed(double t) const {
 }
 
 NoisyOdometry::NoisyOdometry(const Trajectory& truth, double begin_time, double end_time,
-                             double relative_noise, unsigned seed)
-    : truth_(truth), begin_time_(begin_time), relative_noise_(relative_noise) {
+                             double relative_noise, unsigned seed, double yaw_scale)
+    : truth_(truth), begin_time_(begin_time), relative_noise_(relative_noise), yaw_scale_(yaw_scale) {
   if (!std::isfinite(relative_noise) || relative_noise < 0.0)
     throw std::invalid_argument("odom_noise: must be finite and >= 0");
+  if (!std::isfinite(yaw_scale) || !(yaw_scale > 0.0))
+    throw std::invalid_argument("odom_yaw_scale: must be finite and > 0");
   if (!std::isfinite(begin_time) || !std::isfinite(end_time) || end_time < begin_time)
     throw std::invalid_argument("odometry times: must be finite, end >= begin");
   const auto steps = std::max<std::size_t>(
@@ -255,6 +257,7 @@ NoisyOdometry::NoisyOdometry(const Trajectory& truth, double begin_time, double 
       factors.y = 1.0 + relative_noise * normal(rng);
       factors.yaw = 1.0 + relative_noise * normal(rng);
     }
+    factors.yaw *= yaw_scale;
     const Pose2 next_truth = truth.pose(stepStart(j + 1));
     step_odometry_.push_back(measured(j, next_truth));
     step_truth_.push_back(next_truth);
@@ -272,7 +275,7 @@ std::size_t NoisyOdometry::stepAt(double t) const {
 
 Pose2 NoisyOdometry::pose(double t) const {
   const std::size_t j = stepAt(t);
-  if (relative_noise_ == 0.0)
+  if (relative_noise_ == 0.0 && yaw_scale_ == 1.0)
     return truth_.pose(t);
   return measured(j, truth_.pose(t));
 }

@@ -72,7 +72,7 @@ void writeSimulationBag(const sim::Scenario& scenario, const SimBagOptions& opti
   const double tf_end = scenario.duration + scan_period + claimed_after + options.tf_margin;
   // What the odometry reports, in 20 ms steps from the first sample (throws for a bad odom_noise).
   const sim::NoisyOdometry odometry_motion(trajectory, tf_begin, tf_end, options.odom_noise,
-                                           options.odom_noise_seed);
+                                           options.odom_noise_seed, options.odom_yaw_scale);
 
   rosbag::Bag bag(bag_path, rosbag::bagmode::Write);
 
@@ -179,6 +179,7 @@ void writeSimulationBag(const sim::Scenario& scenario, const SimBagOptions& opti
   truth.sweep_period = scan_period;
   truth.odom_noise = options.odom_noise;
   truth.odom_noise_seed = options.odom_noise_seed;
+  truth.odom_yaw_scale = options.odom_yaw_scale;
   sim::writeTruth(truth, truth_path);
 }
 

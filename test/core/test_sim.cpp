@@ -351,5 +351,27 @@ TEST(SimOdometry, BetweenGridPointsAndWithoutNoise) {
   }
 }
 
+// Odometry that reports a share of the true rotation (a wrong wheel base): every step's yaw increment
+// is that share of the truth's, x and y as true; on a spin in place the heading turns 0.4x as far.
+TEST(SimOdometry, YawScaleScalesEveryStepsRotation) {
+  const ArcTrajectory arc({0.0, -0.75, 0.3}, 1.5, 2.0);
+  const NoisyOdometry scaled(arc, 0.0, 2.0, 0.0, 1, 0.4);
+  for (std::size_t j = 0; j < scaled.steps(); ++j) {
+    const double begin = j * 0.02, end = begin + 0.02;
+    const Eigen::Vector3d true_step = relative(arc.pose(begin), arc.pose(end));
+    const Eigen::Vector3d measured = relative(scaled.pose(begin), scaled.pose(end));
+    EXPECT_NEAR(measured.x(), true_step.x(), 1e-12) << j;
+    EXPECT_NEAR(measured.y(), true_step.y(), 1e-12) << j;
+    EXPECT_NEAR(measured.z(), 0.4 * true_step.z(), 1e-12) << j;
+    EXPECT_EQ(scaled.factors(begin + 0.01).yaw, 0.4);
+  }
+  const ArcTrajectory spin({1.0, 2.0, 0.5}, 0.0, 1.5);
+  const NoisyOdometry spin_scaled(spin, 0.0, 2.0, 0.0, 1, 0.4);
+  EXPECT_NEAR(spin_scaled.pose(1.37).yaw - 0.5, 0.4 * 1.5 * 1.37, 1e-9);
+  EXPECT_NEAR(spin_scaled.pose(1.37).x, 1.0, 1e-12);
+  EXPECT_THROW(NoisyOdometry(arc, 0.0, 1.0, 0.0, 1, 0.0), std::invalid_argument);
+  EXPECT_THROW(NoisyOdometry(arc, 0.0, 1.0, 0.0, 1, std::nan("")), std::invalid_argument);
+}
+
 }  // namespace
 }  // namespace lidar_deskew::sim

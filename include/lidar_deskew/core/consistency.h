@@ -40,6 +40,18 @@ class PlacedScan {
   bool distanceToContour(const Eigen::Vector2d& query, double radius, double& distance,
                          double& nearest) const;
 
+  /// What distanceToContour() finds, with the place on the contour: the scan matcher's correspondence.
+  struct ContourHit {
+    double distance = 0.0;                            ///< [m] as distanceToContour()
+    double nearest = 0.0;                             ///< [m] to the nearest point
+    Eigen::Vector2d point = Eigen::Vector2d::Zero();  ///< [m] the nearest point of this scan
+    /// unit normal of the contour's line through `point` (zero when it has no contour neighbours:
+    /// `distance` is then to the point itself)
+    Eigen::Vector2d normal = Eigen::Vector2d::Zero();
+  };
+  /// distanceToContour() with the nearest point and the contour's normal there.
+  bool contourHit(const Eigen::Vector2d& query, double radius, ContourHit& hit) const;
+
  private:
   std::size_t binOf(const Eigen::Vector2d& point) const;
 

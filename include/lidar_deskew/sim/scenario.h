@@ -95,6 +95,8 @@ struct Truth {
   /// written before it existed) and the seed of its generator. The motion above stays the true one.
   double odom_noise = 0.0;
   unsigned odom_noise_seed = 0;
+  /// The odometry's yaw increments x this (sim::NoisyOdometry's yaw_scale; 1 in files without it).
+  double odom_yaw_scale = 1.0;
 
   PiecewiseTrajectory trajectory() const { return PiecewiseTrajectory(start, pieces); }
   /// The mount in force at bag time `time` [ns] (mount_change's from its time on).
@@ -111,7 +113,8 @@ struct Truth {
 /// Writes / reads the ground-truth file (a small line-based text format, full double precision).
 /// The timing lines: "time_offset S" (= -stamp_error), "reversed 0|1", "time_increment_factor F",
 /// "zero_scan_time 0|1", "beam_period S", "sweep_period S"; absent in older files, which read as no
-/// fault and periods 0. The odometry lines "odom_noise R", "odom_noise_seed N"; absent: 0 (perfect).
+/// fault and periods 0. The odometry lines "odom_noise R", "odom_noise_seed N"; absent: 0 (perfect);
+/// "odom_yaw_scale F" only when not 1.
 /// "mount_change T X Y YAW" only when the mount changed.
 /// read throws std::runtime_error naming the file and line on malformed input.
 void writeTruth(const Truth& truth, const std::string& path);

@@ -176,8 +176,10 @@ std::vector<MotionPiece> smoothUnicyclePieces(double speed, double yaw_rate, dou
 /// std::mt19937(seed), x then y then yaw, step after step). The odometry starts at the true pose at
 /// begin_time and composes the measured increments: odom(s_j+1) = odom(s_j) (+) measured d_j. Between
 /// grid points, for t in [s_j, s_j+1): odom(t) = odom(s_j) (+) (truth(s_j)^-1 (+) truth(t)) scaled by
-/// step j's factors. With relative_noise 0 the odometry is the truth: pose(t) is truth.pose(t), bit
-/// for bit. `truth` must outlive this object.
+/// step j's factors. With relative_noise 0 (and yaw_scale 1) the odometry is the truth: pose(t) is
+/// truth.pose(t), bit for bit. `yaw_scale` multiplies every step's yaw factor: odometry that reports
+/// that share of the true rotation (a wrong wheel base), with or without noise. `truth` must outlive
+/// this object.
 class NoisyOdometry final : public Trajectory {
  public:
   static constexpr double kStepDuration = 0.02;  ///< [s]
@@ -190,10 +192,10 @@ class NoisyOdometry final : public Trajectory {
   };
 
   /// Odometry over [begin_time, end_time] [s] (whole steps: up to the first grid point at or after
-  /// end_time). Throws std::invalid_argument if relative_noise is negative or not finite, or the times
-  /// are not finite or end_time < begin_time.
+  /// end_time). Throws std::invalid_argument if relative_noise is negative or not finite, yaw_scale not
+  /// positive and finite, or the times are not finite or end_time < begin_time.
   NoisyOdometry(const Trajectory& truth, double begin_time, double end_time, double relative_noise,
-                unsigned seed);
+                unsigned seed, double yaw_scale = 1.0);
   /// The odometry's pose at t [s]; throws std::out_of_range outside the steps.
   Pose2 pose(double t) const override;
   /// The factors of the step that holds t [s] (all 1 without noise); throws like pose().
@@ -210,6 +212,7 @@ class NoisyOdometry final : public Trajectory {
   const Trajectory& truth_;
   double begin_time_;
   double relative_noise_;
+  double yaw_scale_;
   std::vector<Factors> factors_;      // per step
   std::vector<Pose2> step_truth_;     // truth(s_j)
   std::vector<Pose2> step_odometry_;  // odom(s_j)

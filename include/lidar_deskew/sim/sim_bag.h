@@ -30,6 +30,9 @@ struct SimBagOptions {
   /// from their own generator).
   double odom_noise = 0.0;
   unsigned odom_noise_seed = 1;  ///< of the odometry's generator
+  /// The odometry's yaw increments x this (sim::NoisyOdometry's yaw_scale): 1 = as true; 0.4 = a robot
+  /// whose odometry reports 0.4 of its rotation. Recorded in the truth when not 1.
+  double odom_yaw_scale = 1.0;
   /// A recalibrated mount: /tf_static base -> laser written again, stamped and recorded at its time, and
   /// the scans whose last beam is at or after that time cast with it (recorded in the truth). Put the
   /// time between two sweeps (a sensor's blind sector, or between two beams) for a truth that holds
