@@ -81,7 +81,7 @@ const ParamSpec kSpecs[] = {
     {"exact", "bool", "false", "", kNoBound, kNoBound, false, "", false, false,
      "one tf lookup per beam (verification, benchmarks)"},
     {"tf_timeout", "double", "0.2", "s", 0.0, 60.0, false, "", false, true,
-     "longest wait for tf to cover a sweep's last beam (offline: in record time)"},
+     "longest wait for tf to cover a sweep's last beam (offline, the recording's tf decides)"},
     {"on_tf_failure", "string", "drop", "", kNoBound, kNoBound, false, "drop|pass_through", false, true,
      "what happens to a scan tf does not cover"},
     {"max_tf_gap", "double", "0.5", "s", 0.0, 60.0, false, "", false, true,

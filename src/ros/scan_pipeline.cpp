@@ -354,6 +354,7 @@ void SweepPipeline<Processor>::serveRecorded(double now) {
   // tf only grows: a sweep ending after tf's newest waits. Once tf has passed its end, tf either
   // covers it or never will (its start before tf began, or gone from the cache).
   const core::TimeNs newest = tf_.newestChainTime();
+  std::map<std::string, bool> mount_known;  // by frame, for this call
   for (auto it = pending_.begin(); it != pending_.end();) {
     const core::TimeNs latest = it->prepared.latest();
     if (newest == 0 || (latest > newest && latest <= newest + TfFeed::kFarNs)) {
@@ -361,9 +362,14 @@ void SweepPipeline<Processor>::serveRecorded(double now) {
       continue;
     }
     std::string never;
-    const Coverage coverage = tf_.coverage(it->prepared.earliest(), latest, &never);
-    if (coverage == Coverage::kCovered && !tf_.mountKnown(it->frame)) {
-      ++it;  // the mount may come later (another connection)
+    const Coverage coverage =
+        it->covered ? Coverage::kCovered : tf_.coverage(it->prepared.earliest(), latest, &never);
+    const auto known = mount_known.try_emplace(it->frame, false);
+    if (known.second)
+      known.first->second = tf_.mountKnown(it->frame);
+    if (coverage == Coverage::kCovered && !known.first->second) {
+      it->covered = true;  // tf only grows: not asked again while it waits for the mount
+      ++it;                // the mount may come later (another connection)
       continue;
     }
     const Pending next = std::move(*it);

@@ -157,7 +157,6 @@ class SweepPipeline {
 
   const PipelineCounters& counters() const { return counters_; }
   std::size_t waiting() const { return pending_.size(); }
-  Waiting waitingRule() const { return waiting_; }
   const DeskewParams& params() const { return params_; }
   const TfFeed& tf() const { return tf_; }
 
@@ -167,6 +166,7 @@ class SweepPipeline {
     std::string frame;  // normalised frame id
     double arrival = 0.0;
     std::uint64_t id = 0;
+    bool covered = false;  // Waiting::kRecording: tf covers it; it waits for its mount
   };
 
   /// Every call's `now` passes here: the clock going back by more than a second is a time jump (a /clock
