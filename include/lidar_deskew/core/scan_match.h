@@ -8,6 +8,7 @@
 #include <Eigen/Core>
 
 #include <cstddef>
+#include <deque>
 #include <string>
 #include <vector>
 
@@ -167,5 +168,45 @@ ShapeVerdict checkShapes(std::vector<PlanarScan> scans, const mrpt::poses::CPose
                          const MotionSource& motion, const TimingConfig& timing,
                          const DeskewConfig& deskew = DeskewConfig(),
                          const ShapeConfig& config = ShapeConfig());
+
+/// The live node's check that tf's rotation fits the scans (docs/CALIBRATION.md, "Shapes"): now and
+/// then a scan is matched, raw and with no guess, to the one just before it, and the rotation seen is
+/// compared with tf's between their sweeps' middles under the configured timing. Cheap: one match (about
+/// a millisecond) per `interval` of scans.
+struct RotationMonitorConfig {
+  ShapeConfig shape;          ///< the matcher, the turning rate and the verdict's bounds and min_pairs
+  double interval = 2.0;      ///< [s] at most one pair this often
+  std::size_t history = 200;  ///< the newest pairs kept
+};
+class RotationMonitor {
+ public:
+  explicit RotationMonitor(const TimingConfig& timing,
+                           const RotationMonitorConfig& config = RotationMonitorConfig());
+  /// Offers the next scan of the stream (each one, in stamp order; `mount` base -> laser, `motion`
+  /// covering its sweep). When `interval` has passed since the last pair and the scan before it came at
+  /// most 1.5 of the stream's intervals earlier, matches the two and compares with tf. Returns whether
+  /// it matched (did the work). A scan whose timing or tf fails is skipped.
+  bool add(const PlanarScan& scan, const mrpt::poses::CPose3D& mount, const MotionSource& motion);
+  /// Scale and correlation over the pairs kept (no lag search: lag fields NaN).
+  RotationAgreement agreement() const;
+  /// shapeWarnings() on the agreement: empty when it fits or too few pairs turn.
+  std::vector<std::string> warnings() const;
+  /// Forgets the pairs and the previous scan; `timing` from now on.
+  void reset(const TimingConfig& timing);
+
+ private:
+  TimingConfig timing_;
+  RotationMonitorConfig config_;
+  PlanarScan previous_;
+  bool has_previous_ = false;
+  TimeNs last_pair_ = 0;
+  bool has_pair_ = false;
+  struct Pair {
+    double matched;  // [rad]
+    double told;     // [rad] tf's
+    bool turning;
+  };
+  std::deque<Pair> pairs_;
+};
 
 }  // namespace lidar_deskew::core
