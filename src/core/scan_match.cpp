@@ -148,11 +148,6 @@ Pose2d Pose2d::compose(const Pose2d& other) const {
   return {position.x(), position.y(), wrapAngle(yaw + other.yaw)};
 }
 
-Pose2d Pose2d::inverse() const {
-  const double cosine = std::cos(yaw), sine = std::sin(yaw);
-  return {-(cosine * x + sine * y), sine * x - cosine * y, -yaw};
-}
-
 ScanMatch matchScans(const PlacedScan& reference, const std::vector<Eigen::Vector2d>& moving,
                      const Pose2d& guess, const ScanMatchConfig& config) {
   ScanMatch match;
