@@ -148,11 +148,6 @@ Pose2d Pose2d::compose(const Pose2d& other) const {
   return {position.x(), position.y(), wrapAngle(yaw + other.yaw)};
 }
 
-Pose2d Pose2d::inverse() const {
-  const double cosine = std::cos(yaw), sine = std::sin(yaw);
-  return {-(cosine * x + sine * y), sine * x - cosine * y, -yaw};
-}
-
 ScanMatch matchScans(const PlacedScan& reference, const std::vector<Eigen::Vector2d>& moving,
                      const Pose2d& guess, const ScanMatchConfig& config) {
   ScanMatch match;
@@ -433,6 +428,69 @@ ShapeVerdict checkShapes(std::vector<PlanarScan> scans, const mrpt::poses::CPose
   verdict.rotation = check.rotation(timing);
   verdict.warnings = shapeWarnings(verdict.shapes, verdict.rotation, config);
   return verdict;
+}
+
+RotationMonitor::RotationMonitor(const TimingConfig& timing, const RotationMonitorConfig& config)
+    : timing_(timing), config_(config) {}
+
+void RotationMonitor::reset(const TimingConfig& timing) {
+  timing_ = timing;
+  has_previous_ = has_pair_ = false;
+  pairs_.clear();
+}
+
+bool RotationMonitor::add(const PlanarScan& scan, const mrpt::poses::CPose3D& mount,
+                          const MotionSource& motion) {
+  const bool due = !has_pair_ || scan.stamp - last_pair_ >= secondsToNs(config_.interval);
+  const bool consecutive = has_previous_ && scan.stamp > previous_.stamp &&
+                           scan.stamp - previous_.stamp <= secondsToNs(config_.shape.max_interval);
+  bool matched = false;
+  if (due && consecutive) {
+    try {
+      const auto middle = [&](const PlanarScan& of) {
+        const BeamTiming beams = resolveTiming(of, timing_);
+        return beams.earliestBeamTime() + (beams.latestBeamTime() - beams.earliestBeamTime()) / 2;
+      };
+      const TimeNs earlier_time = middle(previous_), later_time = middle(scan);
+      const double told =
+          wrapAngle(((motion.basePose(later_time) + mount) - (motion.basePose(earlier_time) + mount)).yaw());
+      const PlacedScan earlier = inOwnFrame(previous_), later = inOwnFrame(scan);
+      const ScanMatch match = matchScans(earlier, later.points(), Pose2d(), config_.shape.match);
+      matched = true;
+      last_pair_ = scan.stamp;
+      has_pair_ = true;
+      if (match.valid && match.overlap >= config_.shape.min_overlap) {
+        const double turn = config_.shape.turning_rate * nsToSeconds(later_time - earlier_time);
+        pairs_.push_back({match.pose.yaw, told, std::abs(told) >= turn || std::abs(match.pose.yaw) >= turn});
+        if (pairs_.size() > config_.history)
+          pairs_.pop_front();
+      }
+    } catch (const InvalidInput&) {
+    } catch (const MotionUnavailable&) {
+    }
+  }
+  previous_ = scan;
+  has_previous_ = true;
+  return matched;
+}
+
+RotationAgreement RotationMonitor::agreement() const {
+  RotationAgreement result;
+  result.scale = result.correlation = result.lag = result.lag_scale = result.lag_correlation = kNaN;
+  std::vector<double> matched, told;
+  for (const Pair& pair : pairs_) {
+    matched.push_back(pair.matched);
+    told.push_back(pair.told);
+    result.turning_pairs += pair.turning ? 1 : 0;
+  }
+  result.pairs = pairs_.size();
+  if (result.turning_pairs > 0)
+    fitRotation(told, matched, result.scale, result.correlation);
+  return result;
+}
+
+std::vector<std::string> RotationMonitor::warnings() const {
+  return shapeWarnings(ShapeRatio(), agreement(), config_.shape);
 }
 
 }  // namespace lidar_deskew::core

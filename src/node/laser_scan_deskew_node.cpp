@@ -177,6 +177,7 @@ DeskewNode<Processor>::DeskewNode(ros::NodeHandle nh, ros::NodeHandle private_nh
   diagnostics_->add("deskew", this, &DeskewNode::produceDiagnostics);
   if constexpr (std::is_same_v<Processor, ros_adapter::ScanProcessor>) {
     timing_check_ = std::make_unique<core::TimingCheck>(params_.timing);
+    rotation_monitor_ = std::make_unique<core::RotationMonitor>(params_.timing);
     pipeline_.setCorrected([this](const typename Processor::Prepared& prepared,
                                   const mrpt::poses::CPose3D& mount) { checkTiming(prepared, mount); });
   }
@@ -235,6 +236,8 @@ DeskewNode<Processor>::DeskewNode(ros::NodeHandle nh, ros::NodeHandle private_nh
       pipeline_.reconfigure(next);
       if (timing_check_ && !sameTiming(next.timing, params_.timing))
         timing_check_->reset(next.timing);
+      if (rotation_monitor_ && !sameTiming(next.timing, params_.timing))
+        rotation_monitor_->reset(next.timing);
       params_ = next;
       if (!reconfigure_->first) {
         const std::string changed = changes(reconfigure_->taken, config);
@@ -372,7 +375,8 @@ void DeskewNode<Processor>::tfCallback(const tf2_msgs::TFMessage::ConstPtr& mess
 template <class Processor>
 void DeskewNode<Processor>::timerCallback(const ros::WallTimerEvent& /*event*/) {
   bool diagnostics_due = false;
-  std::optional<bool> timing_known;  // whether the timing check has a verdict, when diagnostics are due
+  std::optional<bool> timing_known;    // whether the timing check has a verdict, when diagnostics are due
+  std::optional<bool> rotation_known;  // whether the rotation monitor has enough turning pairs, likewise
   {
     std::lock_guard<std::mutex> lock(mutex_);
     const CpuSpent spent(callbacks_cpu_);
@@ -396,6 +400,8 @@ void DeskewNode<Processor>::timerCallback(const ros::WallTimerEvent& /*event*/) 
     diagnostics_due = (now - last_diagnostics_).toSec() >= params_.diagnostics_period;
     if (diagnostics_due && timing_check_)
       timing_known = timing_check_->verdict().state != core::TimingCheck::State::kUnknown;
+    if (diagnostics_due && rotation_monitor_)
+      rotation_known = rotation_monitor_->agreement().turning_pairs >= core::ShapeConfig().min_pairs;
   }
   // The timing status appears once the robot has turned enough to tell, and goes when the check
   // starts over (the timing parameters changed). Outside mutex_: the Updater holds its own lock while
@@ -406,6 +412,14 @@ void DeskewNode<Processor>::timerCallback(const ros::WallTimerEvent& /*event*/) 
     else
       diagnostics_->removeByName("timing");
     timing_reported_ = *timing_known;
+  }
+  // Likewise the status of tf's rotation against the scans.
+  if (rotation_known && *rotation_known != rotation_reported_) {
+    if (*rotation_known)
+      diagnostics_->add("tf rotation", this, &DeskewNode::produceRotationDiagnostics);
+    else
+      diagnostics_->removeByName("tf rotation");
+    rotation_reported_ = *rotation_known;
   }
   // On the wall clock: the Updater's own schedule is in ROS time, which stands still with a paused
   // bag and goes back when a bag loops (diagnostics then fell silent).
@@ -494,6 +508,13 @@ template <class Processor>
 void DeskewNode<Processor>::checkTiming(const typename Processor::Prepared& prepared,
                                         const mrpt::poses::CPose3D& mount) {
   if constexpr (std::is_same_v<Processor, ros_adapter::ScanProcessor>) {
+    if (rotation_monitor_) {
+      try {  // a match every 2 s of scans: outside the timing check's budget
+        rotation_monitor_->add(prepared.scan, mount, pipeline_.tf().motion());
+      } catch (const std::exception& error) {  // the scan is published already: only the check loses
+        ROS_ERROR_THROTTLE(10.0, "%s: rotation check: %s", name_.c_str(), error.what());
+      }
+    }
     if (!timing_check_ || !timingCheckAffordable())
       return;
     timeCheck([&] {
@@ -519,6 +540,24 @@ void DeskewNode<Processor>::produceTimingDiagnostics(diagnostic_updater::Diagnos
   status.add("best alternative", verdict.best_name);
   status.add("best alternative [mm]", 1e3 * verdict.best);
   status.add("check CPU share [%]", 100.0 * check_cpu_ / std::max(1e-9, callbacks_cpu_));
+}
+
+template <class Processor>
+void DeskewNode<Processor>::produceRotationDiagnostics(diagnostic_updater::DiagnosticStatusWrapper& status) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  const core::RotationAgreement agreement = rotation_monitor_->agreement();
+  const std::vector<std::string> warnings = rotation_monitor_->warnings();
+  char fits[160];
+  std::snprintf(fits, sizeof fits,
+                "tf's rotation fits the scans: scan matching sees %.2fx it (correlation %.2f)",
+                agreement.scale, agreement.correlation);
+  status.summary(
+      warnings.empty() ? diagnostic_msgs::DiagnosticStatus::OK : diagnostic_msgs::DiagnosticStatus::WARN,
+      warnings.empty() ? std::string(fits) : warnings.front());
+  status.add("scan matching / tf rotation", agreement.scale);
+  status.add("rotation correlation", agreement.correlation);
+  status.add("rotation pairs", agreement.pairs);
+  status.add("rotation pairs turning", agreement.turning_pairs);
 }
 
 template <class Processor>

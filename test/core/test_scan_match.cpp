@@ -186,5 +186,28 @@ TEST(ShapeCheck, SeesWhenTfFitsOnlyAtAnotherTime) {
   EXPECT_NE(warnings[0].find("tf read at the scans' times -400 ms fits"), std::string::npos) << warnings[0];
 }
 
+// The live node's monitor, fed scan after scan as the node feeds them: a pair every 0.3 s.
+TEST(RotationMonitor, SeesTfsRotationFitOrNot) {
+  const Drive drive;
+  RotationMonitorConfig config;
+  config.interval = 0.3;
+  for (const double yaw_scale : {1.0, 0.4}) {
+    const Recording recording = record(drive, false, yaw_scale);
+    RotationMonitor monitor(TimingConfig(), config);
+    std::size_t matched = 0;
+    for (const PlanarScan& scan : recording.scans)
+      matched += monitor.add(scan, recording.mount, recording.motion) ? 1 : 0;
+    const RotationAgreement agreement = monitor.agreement();
+    EXPECT_GE(matched, 25u);
+    EXPECT_LE(matched, 34u);  // one in three scans at most (8 Hz)
+    EXPECT_GE(agreement.turning_pairs, 10u);
+    EXPECT_NEAR(agreement.scale, 1.0 / yaw_scale, 0.05 / yaw_scale) << yaw_scale;
+    EXPECT_GT(agreement.correlation, 0.99) << yaw_scale;
+    EXPECT_EQ(monitor.warnings().empty(), yaw_scale == 1.0) << yaw_scale;
+    monitor.reset(TimingConfig());
+    EXPECT_EQ(monitor.agreement().pairs, 0u);
+  }
+}
+
 }  // namespace
 }  // namespace lidar_deskew::core

@@ -65,6 +65,7 @@ TEST(TimingCheck, ReportsWhetherTheTimingFits) {
   if (!turning) {
     // Nothing to tell from: no timing status at all, while the deskew reports as usual.
     EXPECT_FALSE(rig.status(": timing", level, message)) << message;
+    EXPECT_FALSE(rig.status(": tf rotation", level, message)) << message;
     EXPECT_GT(rig.diagnosticsReceived(), 0u);
     return;
   }
@@ -76,6 +77,13 @@ TEST(TimingCheck, ReportsWhetherTheTimingFits) {
   } else {
     EXPECT_EQ(level, diagnostic_msgs::DiagnosticStatus::OK) << message;
     EXPECT_NE(message.find("timing fits"), std::string::npos) << message;
+    // The rig's odometry is the truth, and the node reads the stamps right: tf's rotation between
+    // consecutive scans is the one scan matching sees (one pair every 2 s of scans).
+    ASSERT_TRUE(rig.status(": tf rotation", level, message));
+    std::printf("tf rotation status: %s\n", message.c_str());
+    EXPECT_EQ(level, diagnostic_msgs::DiagnosticStatus::OK) << message;
+    EXPECT_NE(message.find("tf's rotation fits the scans"), std::string::npos) << message;
+    EXPECT_NEAR(rig.diagnosticNumber("scan matching / tf rotation"), 1.0, 0.05) << message;
   }
   EXPECT_GE(rig.diagnosticNumber("pairs while turning"), 20.0);
   // Within its budget: 5 % of the CPU time of the node's callbacks (a part of the node's CPU); with scans

@@ -8,6 +8,7 @@
 #include <Eigen/Core>
 
 #include <cstddef>
+#include <deque>
 #include <string>
 #include <vector>
 
@@ -26,7 +27,6 @@ struct Pose2d {
   Eigen::Vector2d apply(const Eigen::Vector2d& point) const;
   /// this (+) other: first `other`, then this.
   Pose2d compose(const Pose2d& other) const;
-  Pose2d inverse() const;
 };
 
 /// The matcher's constants.
@@ -142,14 +142,15 @@ class ShapeCheck {
   std::vector<ScanMatch> to_previous_;  // scan i (moving) onto i - 1; invalid for none
   RotationAgreement rotation_;
   std::vector<std::pair<std::size_t, std::size_t>> pairs_;
-  std::vector<Pose2d> pair_guess_;      // later -> earlier, chained consecutive matches
   std::vector<ScanMatch> raw_matches_;  // per pair
 };
 
 /// The verdicts in words, each with its figure; empty when shapes improve and tf's rotation fits (or
 /// when there are too few pairs to say): "tf's rotation does not fit the scans: scan matching sees
-/// 0.41x tf's rotation between consecutive scans (correlation 0.97, 120 pairs)", "correction makes
-/// shapes worse than raw: aligned distance 1.27x raw (quartiles 1.02-1.51, 80 pairs)".
+/// 0.41x tf's rotation between consecutive scans (correlation 0.97, 120 pairs, 80 turning)" (and,
+/// when tf read at another lag fits, "; tf read at the scans' times -150 ms fits (0.98x, correlation
+/// 0.98): ..."), "correction makes shapes worse than raw: aligned distance 1.27x raw (quartiles
+/// 1.02-1.51, 80 pairs)".
 std::vector<std::string> shapeWarnings(const ShapeRatio& shapes, const RotationAgreement& rotation,
                                        const ShapeConfig& config = ShapeConfig());
 
@@ -167,5 +168,45 @@ ShapeVerdict checkShapes(std::vector<PlanarScan> scans, const mrpt::poses::CPose
                          const MotionSource& motion, const TimingConfig& timing,
                          const DeskewConfig& deskew = DeskewConfig(),
                          const ShapeConfig& config = ShapeConfig());
+
+/// The live node's check that tf's rotation fits the scans (docs/CALIBRATION.md, "Shapes"): now and
+/// then a scan is matched, raw and with no guess, to the one just before it, and the rotation seen is
+/// compared with tf's between their sweeps' middles under the configured timing. Cheap: one match (about
+/// a millisecond) per `interval` of scans.
+struct RotationMonitorConfig {
+  ShapeConfig shape;          ///< the matcher, the turning rate and the verdict's bounds and min_pairs
+  double interval = 2.0;      ///< [s] at most one pair this often
+  std::size_t history = 200;  ///< the newest pairs kept
+};
+class RotationMonitor {
+ public:
+  explicit RotationMonitor(const TimingConfig& timing,
+                           const RotationMonitorConfig& config = RotationMonitorConfig());
+  /// Offers the next scan of the stream (each one, in stamp order; `mount` base -> laser, `motion`
+  /// covering its sweep). When `interval` has passed since the last pair and the scan before it came at
+  /// most ShapeConfig::max_interval earlier, matches the two and compares with tf. Returns whether it
+  /// matched (did the work). A scan whose timing or tf fails is skipped.
+  bool add(const PlanarScan& scan, const mrpt::poses::CPose3D& mount, const MotionSource& motion);
+  /// Scale and correlation over the pairs kept (no lag search: lag fields NaN).
+  RotationAgreement agreement() const;
+  /// shapeWarnings() on the agreement: empty when it fits or too few pairs turn.
+  std::vector<std::string> warnings() const;
+  /// Forgets the pairs and the previous scan; `timing` from now on.
+  void reset(const TimingConfig& timing);
+
+ private:
+  TimingConfig timing_;
+  RotationMonitorConfig config_;
+  PlanarScan previous_;
+  bool has_previous_ = false;
+  TimeNs last_pair_ = 0;
+  bool has_pair_ = false;
+  struct Pair {
+    double matched;  // [rad]
+    double told;     // [rad] tf's
+    bool turning;
+  };
+  std::deque<Pair> pairs_;
+};
 
 }  // namespace lidar_deskew::core

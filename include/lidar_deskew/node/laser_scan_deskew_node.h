@@ -16,6 +16,7 @@
 #include <string>
 #include <vector>
 
+#include "lidar_deskew/core/scan_match.h"
 #include "lidar_deskew/core/timing_fit.h"
 #include "lidar_deskew/ros/deskew_params.h"
 #include "lidar_deskew/ros/scan_pipeline.h"
@@ -81,6 +82,7 @@ class DeskewNode {
   void report(ros_adapter::PipelineEvent event, const std::string& text);
   void produceDiagnostics(diagnostic_updater::DiagnosticStatusWrapper& status);
   void produceTimingDiagnostics(diagnostic_updater::DiagnosticStatusWrapper& status);
+  void produceRotationDiagnostics(diagnostic_updater::DiagnosticStatusWrapper& status);
   /// Whether one more timing check, costing three times the costliest of late, stays within 5 % of the
   /// callbacks' CPU.
   bool timingCheckAffordable() const;
@@ -88,7 +90,8 @@ class DeskewNode {
   /// check of late.
   template <class Check>
   void timeCheck(Check&& check);
-  /// Feeds the timing check with a corrected sweep when its CPU budget allows (scans only).
+  /// Feeds the timing check with a corrected sweep when its CPU budget allows, and the rotation monitor
+  /// (scans only).
   void checkTiming(const typename Processor::Prepared& prepared, const mrpt::poses::CPose3D& mount);
   double latencyP99Locked() const;
   Counters countersLocked() const;  ///< the pipeline's counters with the node's timing
@@ -126,6 +129,10 @@ class DeskewNode {
   double check_cpu_ = 0.0;          // [s] of it in the timing check
   double largest_check_cpu_ = 0.0;  // [s] the costliest check of late (timeCheck)
   bool timing_reported_ = false;    // the timing status is on /diagnostics (the timer's alone)
+  // The live check that tf's rotation fits the scans (scans only; guarded by mutex_): one match of two
+  // consecutive raw scans every 2 s.
+  std::unique_ptr<core::RotationMonitor> rotation_monitor_;
+  bool rotation_reported_ = false;  // its status is on /diagnostics (the timer's alone)
   std::unique_ptr<Reconfigure> reconfigure_;
 };
 
