@@ -189,6 +189,31 @@ void TfFeed::observeSweep(core::TimeNs latest) {
     return;  // an uninitialised stamp, never served: no time line
   sweep_ = latest;
   clock_at_sweep_ = clock_.value_or(0);
+  // The time line moved (a bag loop, a test rig starting a new time line): transforms left out as off
+  // the old one may be on it. Going back, that is a time jump, seen now, not at the next transform (the
+  // sweep may wait for tf that already came).
+  core::TimeNs back_to = 0;
+  std::string link;
+  for (const geometry_msgs::TransformStamped& transform : left_out_) {
+    const auto link_newest = newest_link_stamps_.find(transform.child_frame_id);
+    const core::TimeNs stamp = toNs(transform.header.stamp);
+    if (link_newest != newest_link_stamps_.end() && stamp < link_newest->second &&
+        judge(link_newest->second, stamp) == Verdict::kNew && (back_to == 0 || stamp < back_to)) {
+      back_to = stamp;
+      link = transform.header.frame_id + " -> " + transform.child_frame_id + ", " +
+             formatNumber(core::nsToSeconds(link_newest->second - stamp)) + " s";
+    }
+  }
+  if (back_to != 0) {
+    jumped_to_ = back_to;
+    notify(TfEvent::kTimeJump, "time went backwards (" + link + ", onto the time line of " + timeLineName() +
+                                   "): clearing the tf cache");
+    clearMotion(nullptr);
+    return;
+  }
+  // Ahead: taken as the link's time line going on.
+  for (geometry_msgs::TransformStamped& transform : takeBackLeftOut())
+    add(transform, false);
 }
 
 std::optional<core::TimeNs> TfFeed::timeLine() const {
@@ -250,30 +275,38 @@ void TfFeed::forgetMotion() {
 }
 
 void TfFeed::clearMotion(const geometry_msgs::TransformStamped* first) {
+  // The transforms left out as off the old time line that the time line now says are real (the new
+  // one's that came before its first sweep) start it with `first`, in stamp order.
+  std::vector<geometry_msgs::TransformStamped> starting = takeBackLeftOut();
+  if (first)
+    starting.push_back(*first);
+  std::stable_sort(starting.begin(), starting.end(), [](const auto& a, const auto& b) {
+    return a.header.stamp < b.header.stamp;
+  });
   buffer_->clear();
   motion_.clearSampleTimes();
   newest_link_stamps_.clear();
   dynamic_parents_.clear();
   backward_.clear();
-  // `first` starts the new time line; the held transforms went back with the time: they are on it too
-  // (each judged again against it).
+  // The held transforms went back with the time: they are on the new time line too (each judged again).
   std::vector<geometry_msgs::TransformStamped> held;
   held.swap(held_);
-  std::deque<geometry_msgs::TransformStamped> left_out;
-  left_out.swap(left_out_);
-  if (first) {
-    add(*first, false);
-    // Transforms of the new time line that came before the sweeps moved onto it were left out as off
-    // the old one: those of the second before `first` are taken back.
-    const core::TimeNs stamp = toNs(first->header.stamp);
-    for (const geometry_msgs::TransformStamped& transform : left_out) {
-      const core::TimeNs t = toNs(transform.header.stamp);
-      if (t < stamp && t + kTimeJumpNs >= stamp)
-        add(transform, false);
-    }
-  }
+  for (const geometry_msgs::TransformStamped& transform : starting)
+    add(transform, false);
   for (const geometry_msgs::TransformStamped& transform : held)
     add(transform, false);
+}
+
+std::vector<geometry_msgs::TransformStamped> TfFeed::takeBackLeftOut() {
+  std::vector<geometry_msgs::TransformStamped> real;
+  for (const geometry_msgs::TransformStamped& transform : left_out_) {
+    const auto newest = newest_link_stamps_.find(transform.child_frame_id);
+    if (newest != newest_link_stamps_.end() &&
+        judge(newest->second, toNs(transform.header.stamp)) == Verdict::kNew)
+      real.push_back(transform);
+  }
+  left_out_.clear();
+  return real;
 }
 
 void TfFeed::rebuildWithout(const std::string& child) {

@@ -94,7 +94,9 @@ class TfFeed {
   /// time on by the time elapsed on it.
   void observeClock(core::TimeNs now);
   /// A sweep's latest time [ns] (on its stamps' clock), at its arrival: the time line tf must serve.
-  /// Ignored when it lies more than kFarNs from tf's newest (an uninitialised stamp).
+  /// Ignored when it lies more than kFarNs from tf's newest (an uninitialised stamp). Transforms left
+  /// out as off the time line that are on it now are taken back: going back, as a time jump (the cache
+  /// cleared, kTimeJump); going ahead, as the link's time line going on.
   void observeSweep(core::TimeNs latest);
   /// [ns] The time line tf must serve now: the newest sweep's latest time carried on by the owner's
   /// clock since it arrived, else the owner's clock; nullopt when neither was given.
@@ -105,9 +107,10 @@ class TfFeed {
   /// [ns] A sweep further than this from tf's newest time (either way) is never waited for: a clock
   /// mix-up or an uninitialised stamp, not late tf.
   static constexpr core::TimeNs kFarNs = 86'400'000'000'000;
-  /// [ns] A time line within this of timeLine() may be the one tf must serve (a scan's stamp lies near
-  /// the real tf's newest: within its latency, or a driver's, up to time_offset's range).
-  static constexpr core::TimeNs kNearNs = 10'000'000'000;
+  /// [ns] A time line within this of timeLine() may be the one tf must serve (a scan's latest beam lies
+  /// near the real tf's newest: within tf's latency or the driver's). Further, it tells nothing: a
+  /// stray publisher's stale tf of before a bag loop may lie closer to the new scans than the old line.
+  static constexpr core::TimeNs kNearNs = 2'000'000'000;
   /// [ns] Of two time lines of a link, the one closer to timeLine() by more than this is the real one.
   static constexpr core::TimeNs kCloserNs = 500'000'000;
 
@@ -187,6 +190,9 @@ class TfFeed {
   /// Clears the dynamic tf and starts the new time line with `first` (when given), then the held
   /// transforms.
   void clearMotion(const geometry_msgs::TransformStamped* first);
+  /// The transforms left out that the time line now says are real (each judged against its link's
+  /// newest stamp); left_out_ is emptied.
+  std::vector<geometry_msgs::TransformStamped> takeBackLeftOut();
   /// Leaves out a transform off the time line (stale or ahead of its link's `newest` [ns]), reported.
   void leaveOut(const geometry_msgs::TransformStamped& transform, core::TimeNs newest);
   /// What timeLine() follows: "the scans' stamps" or "the clock".
