@@ -325,7 +325,9 @@ TEST(Faults, TfAheadOnAnotherClockIsNoTimeJumpAndSaidOnce) {
     delivered += playCovered(rig, t, 1);
   }
   EXPECT_EQ(delivered, count);
-  EXPECT_TRUE(diagnosticReaches(rig, "tf ahead ignored", ahead + count));
+  // Each stray one counted (and the rig's own tf of this new time line, published before its first scan:
+  // left out until that scan moved the time line onto it, then taken back).
+  EXPECT_TRUE(rig.waitFor([&] { return rig.diagnosticNumber("tf ahead ignored") >= ahead + count; }, 5.0));
   EXPECT_EQ(rig.diagnosticNumber("time jumps"), time_jumps);
   rig.spinFor(0.5);  // the log's last lines
   EXPECT_LE(ahead_lines, 1u);
