@@ -77,8 +77,8 @@ Calibration calibrateBag(const CalibrateOptions& options) {
   }
   std::map<ros_adapter::TfEvent, std::size_t> tf_events;
   const std::unique_ptr<ros_adapter::TfFeed> tf =
-      eval::loadRecordedTf(bag, options.input, options.params.fixed_frame, options.params.base_frame,
-                           nullptr, {calibration.scan_topic}, &tf_events);
+      eval::loadRecordedTf(bag, options.input, options.params.fixed_frame, options.params.base_frame, nullptr,
+                           {calibration.scan_topic}, &tf_events);
   calibration.tf_time_jumps = tf_events[ros_adapter::TfEvent::kTimeJump];
   calibration.tf_stale = tf_events[ros_adapter::TfEvent::kStaleIgnored];
   calibration.tf_ahead = tf_events[ros_adapter::TfEvent::kAheadIgnored];

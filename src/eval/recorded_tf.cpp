@@ -18,7 +18,8 @@ std::unique_ptr<ros_adapter::TfFeed> loadRecordedTf(rosbag::Bag& bag, const std:
   rosbag::View everything(bag);
   const double duration = (everything.getEndTime() - everything.getBeginTime()).toSec();
   auto feed = std::make_unique<ros_adapter::TfFeed>(
-      fixed_frame, base_frame, duration + 60.0, [notes, counts](ros_adapter::TfEvent event, const std::string& text) {
+      fixed_frame, base_frame, duration + 60.0,
+      [notes, counts](ros_adapter::TfEvent event, const std::string& text) {
         if (counts)
           ++(*counts)[event];
         if (notes && event != ros_adapter::TfEvent::kMountFirst)

@@ -151,8 +151,8 @@ void SweepPipeline<Processor>::onTfEvent(TfEvent event, const std::string& text)
         break;
       }
       ++counters_.time_jumps;
-      report_(PipelineEvent::kTimeJump, text + " and the waiting " + std::string(Processor::kNoun) +
-                                            "s of the old time line");
+      report_(PipelineEvent::kTimeJump,
+              text + " and the waiting " + std::string(Processor::kNoun) + "s of the old time line");
       failWaiting("time went backwards", tf_.jumpedTo());
       clock_follows_tf_ = true;  // the owner's clock may follow tf back: that is this jump, not another
       tf_jump_clock_ = clock_.value_or(0.0);

@@ -280,9 +280,8 @@ void TfFeed::clearMotion(const geometry_msgs::TransformStamped* first) {
   std::vector<geometry_msgs::TransformStamped> starting = takeBackLeftOut();
   if (first)
     starting.push_back(*first);
-  std::stable_sort(starting.begin(), starting.end(), [](const auto& a, const auto& b) {
-    return a.header.stamp < b.header.stamp;
-  });
+  std::stable_sort(starting.begin(), starting.end(),
+                   [](const auto& a, const auto& b) { return a.header.stamp < b.header.stamp; });
   buffer_->clear();
   motion_.clearSampleTimes();
   newest_link_stamps_.clear();

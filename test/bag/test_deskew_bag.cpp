@@ -329,7 +329,8 @@ int writeWithStray(const std::string& path, double offset, double period, int lo
 // (each of its messages passed for a time jump and cleared the tf cache). The scans' stamps tell the
 // real time line: the stray transforms are left out and counted, every scan comes out as from the
 // clean bag, bit for bit, and deskew_calibrate (tf 3 s ahead) finds the clean bag's timing from as
-// many scans and says what it left out. The recording played twice (stamps going back, record time going on) is one jump.
+// many scans and says what it left out. The recording played twice (stamps going back, record time going on)
+// is one jump.
 TEST(DeskewBag, StrayPublisherOnAnotherClockCostsNoScan) {
   const std::string clean_output = temporary("stray_clean_out.bag");
   BagDeskewOptions options;
@@ -351,17 +352,18 @@ TEST(DeskewBag, StrayPublisherOnAnotherClockCostsNoScan) {
     options.output = output;
     notes.clear();
     const ros_adapter::PipelineCounters counters = deskewBag(options).counters.at("/stable_scan");
-    std::printf("Neato with %d transforms %+.0f s off: %llu of %llu scans corrected (clean: %llu), %llu jumps\n",
-                stray, offset, static_cast<unsigned long long>(counters.published),
-                static_cast<unsigned long long>(counters.received),
-                static_cast<unsigned long long>(clean.published),
-                static_cast<unsigned long long>(counters.time_jumps));
+    std::printf(
+        "Neato with %d transforms %+.0f s off: %llu of %llu scans corrected (clean: %llu), %llu jumps\n",
+        stray, offset, static_cast<unsigned long long>(counters.published),
+        static_cast<unsigned long long>(counters.received), static_cast<unsigned long long>(clean.published),
+        static_cast<unsigned long long>(counters.time_jumps));
     EXPECT_GE(stray, offset > 0.0 ? 20 : 2000);
     EXPECT_EQ(counters.time_jumps, 0u) << offset;
     EXPECT_EQ(counters.published, clean.published) << offset;
     EXPECT_EQ(offset > 0.0 ? counters.ahead_tf : counters.stale_tf, static_cast<std::uint64_t>(stray));
-    EXPECT_NE(notes.find(offset > 0.0 ? "tf ahead from another publisher?" : "stale tf from another publisher?"),
-              std::string::npos)
+    EXPECT_NE(
+        notes.find(offset > 0.0 ? "tf ahead from another publisher?" : "stale tf from another publisher?"),
+        std::string::npos)
         << notes;
     const auto corrected = read<sensor_msgs::LaserScan>(output, "/stable_scan_deskewed");
     ASSERT_EQ(corrected.size(), corrected_clean.size());

@@ -469,8 +469,9 @@ TEST(ScanPipeline, DropsNameTheirCause) {
     EXPECT_TRUE(holds(said,
                       "tf odom -> base_link ends 25.0 ms before the sweep's end, which lies 15.0 ms "
                       "after the arrival: a driver stamping late"));
-    EXPECT_TRUE(holds(said, "Set time_offset (deskew_calibrate finds it from a recording), or give tf "
-                            "longer with a longer tf_timeout"));
+    EXPECT_TRUE(holds(said,
+                      "Set time_offset (deskew_calibrate finds it from a recording), or give tf "
+                      "longer with a longer tf_timeout"));
   }
   {
     PipelineRun run(Drive(), params);
@@ -527,7 +528,7 @@ TEST(ScanPipeline, StaleTfOfAStrayPublisherCostsNoScan) {
 /// stamped `stray_offset` s off) at `stray_rate` Hz (0: none).
 struct StrayDrive {
   PipelineCounters counters;
-  double rms = 0.0;      ///< [m] of the corrected points to the true walls
+  double rms = 0.0;  ///< [m] of the corrected points to the true walls
   std::size_t scans = 0;
   std::uint64_t loop_jumps = 0;      ///< time jumps when the drive starts again (a bag loop, clock on)
   std::uint64_t loop_published = 0;  ///< scans of the loop's 2 s corrected
@@ -596,10 +597,11 @@ TEST(ScanPipeline, StrayPublisherOnAnotherClockIsNoTimeJump) {
   };
   for (const Case& c : {Case{3.0, 2.0, 119}, Case{3.0, 10.0, 591}, Case{-3.0, 200.0, 11801}}) {
     const StrayDrive drive = driveWithStray(c.offset, c.rate);
-    std::printf("stray tf %+.0f s at %.0f Hz: %llu of %zu scans corrected, %llu time jumps, rms %.3f mm "
-                "(clean %.3f)\n",
-                c.offset, c.rate, static_cast<unsigned long long>(drive.counters.published), drive.scans,
-                static_cast<unsigned long long>(drive.counters.time_jumps), 1e3 * drive.rms, 1e3 * clean.rms);
+    std::printf(
+        "stray tf %+.0f s at %.0f Hz: %llu of %zu scans corrected, %llu time jumps, rms %.3f mm "
+        "(clean %.3f)\n",
+        c.offset, c.rate, static_cast<unsigned long long>(drive.counters.published), drive.scans,
+        static_cast<unsigned long long>(drive.counters.time_jumps), 1e3 * drive.rms, 1e3 * clean.rms);
     EXPECT_GE(drive.counters.published, 0.98 * drive.scans) << c.rate;
     EXPECT_EQ(drive.counters.published, clean.counters.published) << c.rate;
     EXPECT_EQ(drive.counters.time_jumps, 0u) << c.rate;

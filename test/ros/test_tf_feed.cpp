@@ -274,7 +274,8 @@ TEST(TfFeed, RefusedTransformDoesNotMoveTheLinksNewestStamp) {
   for (int k = 0; k <= 50; ++k)
     fed.feed.add(kDrive.motionAt(0.02 * k), false);
   geometry_msgs::TransformStamped refused = kDrive.motionAt(1.0);
-  refused.header.stamp = ros_adapter::toRosTime((core::TimeNs{1} << 32) * 1'000'000'000 - core::secondsToNs(5.0));
+  refused.header.stamp =
+      ros_adapter::toRosTime((core::TimeNs{1} << 32) * 1'000'000'000 - core::secondsToNs(5.0));
   EXPECT_TRUE(fed.feed.add(refused, false));
   EXPECT_EQ(fed.events[TfEvent::kBadTransform], 1);
   for (int k = 51; k <= 60; ++k)
@@ -296,9 +297,9 @@ TEST(TfFeed, StrayOnAnotherClockIsToldApartByTheScansTimeLine) {
   for (const double offset : {3.0, -3.0}) {
     Fed fed;
     const int every = offset > 0.0 ? 100 : 1;  // of the 5 ms ticks: 2 Hz ahead, 200 Hz behind
-    for (int i = 0; i <= 2000; ++i) {           // 10 s
+    for (int i = 0; i <= 2000; ++i) {          // 10 s
       const double t = 0.005 * i;
-      fed.feed.observeClock(at(t + 0.01));      // the clock (another: record time), 10 ms on
+      fed.feed.observeClock(at(t + 0.01));  // the clock (another: record time), 10 ms on
       if (i % 4 == 0)
         fed.feed.add(kDrive.motionAt(t), false);
       if (i % 5 == 0 && t >= 0.025)
@@ -315,7 +316,7 @@ TEST(TfFeed, StrayOnAnotherClockIsToldApartByTheScansTimeLine) {
     EXPECT_FALSE(fed.feed.jumpPending());
     EXPECT_EQ(fed.feed.newestChainTime(), at(10.0)) << offset;
     EXPECT_TRUE(fed.feed.covers(at(0.5), at(10.0))) << offset;  // nothing cleared
-    for (const double t : {2.0, 5.5, 9.98}) {  // at tf's samples
+    for (const double t : {2.0, 5.5, 9.98}) {                   // at tf's samples
       const mrpt::poses::CPose3D pose = fed.feed.motion().basePose(at(t));
       EXPECT_NEAR(pose.x(), kDrive.trajectory.pose(t).x, 1e-9) << t;
     }

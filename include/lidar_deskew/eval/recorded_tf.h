@@ -21,12 +21,11 @@ namespace lidar_deskew::eval {
 /// left out, time jumps, tf off the time line) go to `notes`, and the events' counts by kind to
 /// `counts`, when given. Throws std::runtime_error naming the frames when tf never connects fixed_frame
 /// to base_frame.
-std::unique_ptr<ros_adapter::TfFeed> loadRecordedTf(rosbag::Bag& bag, const std::string& bag_path,
-                                                    const std::string& fixed_frame,
-                                                    const std::string& base_frame,
-                                                    std::string* notes = nullptr,
-                                                    const std::vector<std::string>& scan_topics = {},
-                                                    std::map<ros_adapter::TfEvent, std::size_t>* counts = nullptr);
+std::unique_ptr<ros_adapter::TfFeed> loadRecordedTf(
+    rosbag::Bag& bag, const std::string& bag_path, const std::string& fixed_frame,
+    const std::string& base_frame, std::string* notes = nullptr,
+    const std::vector<std::string>& scan_topics = {},
+    std::map<ros_adapter::TfEvent, std::size_t>* counts = nullptr);
 
 /// Leaves out of `scans` those whose stamp tf cannot take: 0 (unset), or far from tf's time line
 /// (TfFeed::coverage says never: an uninitialised stamp, another clock), as the node and deskew_bag

@@ -218,10 +218,10 @@ class TfFeed {
   std::map<std::string, mrpt::poses::CPose3D> mounts_;      // the last mount of each scan frame
   std::map<std::string, int> backward_;                     // by child: its transforms held in a row
   std::vector<geometry_msgs::TransformStamped> held_;       // the transforms going back, undecided
-  std::optional<core::TimeNs> clock_;        // [ns] the owner's clock, as last given
-  std::optional<core::TimeNs> sweep_;        // [ns] the newest sweep's latest time
-  core::TimeNs clock_at_sweep_ = 0;          // [ns] the owner's clock when it arrived
-  core::TimeNs jumped_to_ = 0;               // [ns] the stamp that started the time line, at the last jump
+  std::optional<core::TimeNs> clock_;                       // [ns] the owner's clock, as last given
+  std::optional<core::TimeNs> sweep_;                       // [ns] the newest sweep's latest time
+  core::TimeNs clock_at_sweep_ = 0;                         // [ns] the owner's clock when it arrived
+  core::TimeNs jumped_to_ = 0;  // [ns] the stamp that started the time line, at the last jump
   /// The transforms left out last (off the time line), newest last: at most kLeftOutKept.
   std::deque<geometry_msgs::TransformStamped> left_out_;
   static constexpr std::size_t kLeftOutKept = 64;
