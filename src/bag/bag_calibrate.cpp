@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <map>
 #include <sstream>
 
 #include "lidar_deskew/bag/bag_deskew.h"
@@ -74,8 +75,14 @@ Calibration calibrateBag(const CalibrateOptions& options) {
     throw std::runtime_error(options.input + ": fewer than 2 valid LaserScans on " + calibration.scan_topic +
                              " (LaserScan topics:" + list + ")");
   }
+  std::map<ros_adapter::TfEvent, std::size_t> tf_events;
   const std::unique_ptr<ros_adapter::TfFeed> tf =
-      eval::loadRecordedTf(bag, options.input, options.params.fixed_frame, options.params.base_frame);
+      eval::loadRecordedTf(bag, options.input, options.params.fixed_frame, options.params.base_frame, nullptr,
+                           {calibration.scan_topic}, &tf_events);
+  calibration.tf_time_jumps = tf_events[ros_adapter::TfEvent::kTimeJump];
+  calibration.tf_stale = tf_events[ros_adapter::TfEvent::kStaleIgnored];
+  calibration.tf_ahead = tf_events[ros_adapter::TfEvent::kAheadIgnored];
+  calibration.tf_refused = tf_events[ros_adapter::TfEvent::kBadTransform];
   // Stamps tf cannot take (0, far from tf's time line: uninitialised) are left out (issue 23).
   eval::dropStampsTfCannotTake(scans, *tf);
   std::string error;
@@ -96,6 +103,13 @@ std::string describe(const Calibration& calibration) {
   text << calibration.scan_topic << " (frame " << calibration.frame << ", " << calibration.beams
        << " beams): " << estimate.scans << " scans, one every " << number(calibration.stamp_period * 1e3, 3)
        << " ms +- " << number(calibration.stamp_period_sigma * 1e3, 3) << " ms by their stamps\n";
+  if (calibration.tf_time_jumps + calibration.tf_stale + calibration.tf_ahead + calibration.tf_refused > 0) {
+    text << "  tf: " << calibration.tf_time_jumps
+         << " time jumps (each cleared the tf before it: the scans before it go unused), "
+         << calibration.tf_stale + calibration.tf_ahead << " transforms off the scans' time line left out ("
+         << calibration.tf_stale << " behind, " << calibration.tf_ahead
+         << " ahead: a second publisher on another clock?), " << calibration.tf_refused << " refused\n";
+  }
   text << "  motion: " << estimate.turning_scans << " scans turn at " << number(estimate.turning_rate, 2)
        << " rad/s or faster (fastest " << number(estimate.fastest_turn, 2) << " rad/s); " << estimate.pairs
        << " overlapping pairs with motion, " << estimate.turning_pairs << " with a turning scan, "

@@ -35,7 +35,7 @@ ConsistencyReport measureConsistency(const std::string& bag_path, const std::str
                                      const std::string& figure_csv) {
   rosbag::Bag bag = ros_adapter::openBagForReading(bag_path);
   const std::unique_ptr<ros_adapter::TfFeed> tf =
-      loadRecordedTf(bag, bag_path, params.fixed_frame, params.base_frame);
+      loadRecordedTf(bag, bag_path, params.fixed_frame, params.base_frame, nullptr, {scan_topic});
   std::vector<sensor_msgs::LaserScan::ConstPtr> raw, corrected;
   for (const rosbag::MessageInstance& message :
        rosbag::View(bag, rosbag::TopicQuery(std::vector<std::string>{scan_topic, corrected_topic}))) {

@@ -79,7 +79,7 @@ Evaluation evaluateBag(const std::string& bag_path, const std::string& truth_pat
   // way deskew_bag reads it.
   rosbag::Bag bag = ros_adapter::openBagForReading(bag_path);
   const std::unique_ptr<ros_adapter::TfFeed> tf =
-      loadRecordedTf(bag, bag_path, options.fixed_frame, options.base_frame);
+      loadRecordedTf(bag, bag_path, options.fixed_frame, options.base_frame, nullptr, {options.scan_topic});
   std::vector<sensor_msgs::LaserScan::ConstPtr> scans;
   for (const rosbag::MessageInstance& message : rosbag::View(bag, rosbag::TopicQuery(options.scan_topic))) {
     if (auto scan = message.instantiate<sensor_msgs::LaserScan>())

@@ -51,9 +51,10 @@ LogPolicy policyOf(PipelineEvent event) {
     case PipelineEvent::kTimeFallback:   // reported once by the pipeline
     case PipelineEvent::kStaticIgnored:  // once per frame
     case PipelineEvent::kTwoParents:     // once per frame
-    case PipelineEvent::kStaleTf:        // once
-    case PipelineEvent::kTimeJump:
+    case PipelineEvent::kStaleTf:        // once for stale tf, once for tf ahead
       return {Level::Warn, 0.0};
+    case PipelineEvent::kTimeJump:  // each counted; a flood (a clock gone wrong) is not one line each
+      return {Level::Warn, 1.0};
     case PipelineEvent::kMountFirst:
       return {Level::Info, 0.0};
   }

@@ -72,7 +72,8 @@ std::vector<std::pair<std::string, std::uint64_t>> namedCounters(const PipelineC
           {"time jumps", c.time_jumps},
           {"statics ignored", c.statics_ignored},
           {"stale tf ignored", c.stale_tf},
-          {"lost upstream", c.lost_upstream}};
+          {"lost upstream", c.lost_upstream},
+          {"tf ahead ignored", c.ahead_tf}};
 }
 
 std::string toString(PipelineEvent event) {
@@ -172,9 +173,9 @@ void SweepPipeline<Processor>::onTfEvent(TfEvent event, const std::string& text)
         break;
       }
       ++counters_.time_jumps;
-      report_(PipelineEvent::kTimeJump, text + " and " + std::to_string(pending_.size()) + " waiting " +
-                                            std::string(Processor::kNoun) + "s");
-      failWaiting("time went backwards");
+      report_(PipelineEvent::kTimeJump,
+              text + " and the waiting " + std::string(Processor::kNoun) + "s of the old time line");
+      failWaiting("time went backwards", tf_.jumpedTo());
       clock_follows_tf_ = true;  // the owner's clock may follow tf back: that is this jump, not another
       tf_jump_clock_ = clock_.value_or(0.0);
       break;
@@ -184,6 +185,10 @@ void SweepPipeline<Processor>::onTfEvent(TfEvent event, const std::string& text)
     case TfEvent::kStaleIgnored:
       if (counters_.stale_tf++ == 0)  // once; the count is in the counters
         report_(PipelineEvent::kStaleTf, text + " (counted as 'stale tf ignored'; the tf cache is kept)");
+      break;
+    case TfEvent::kAheadIgnored:
+      if (counters_.ahead_tf++ == 0)  // once; the count is in the counters
+        report_(PipelineEvent::kStaleTf, text + " (counted as 'tf ahead ignored'; the tf cache is kept)");
       break;
     case TfEvent::kTwoParents:
       report_(PipelineEvent::kTwoParents, text);
@@ -200,6 +205,7 @@ void SweepPipeline<Processor>::onTfEvent(TfEvent event, const std::string& text)
 
 template <class Processor>
 void SweepPipeline<Processor>::observeClock(double now) {
+  tf_.observeClock(core::secondsToNs(now));  // after a jump too: the clock's time line decides then
   if (!clock_ || now + kClockJump >= *clock_) {
     clock_ = std::max(now, clock_.value_or(now));
     // The marks of a past jump expire once the clock has run on past them.
@@ -233,11 +239,14 @@ void SweepPipeline<Processor>::observeClock(double now) {
 }
 
 template <class Processor>
-void SweepPipeline<Processor>::failWaiting(const std::string& reason) {
+void SweepPipeline<Processor>::failWaiting(const std::string& reason, core::TimeNs new_time_line) {
   std::deque<Pending> waiting;
   waiting.swap(pending_);
-  for (const Pending& pending : waiting) {
-    if (!tf_.mountKnown(pending.frame))
+  for (Pending& pending : waiting) {
+    if (new_time_line != 0 &&
+        std::abs(pending.prepared.latest() - new_time_line) <= core::secondsToNs(kClockJump)) {
+      pending_.push_back(std::move(pending));  // stamped on the new time line: its tf is coming
+    } else if (!tf_.mountKnown(pending.frame))
       dropForMount(pending, "");
     else
       fail(pending, kCauseTimeJump, reason);
@@ -290,6 +299,7 @@ void SweepPipeline<Processor>::add(const typename Message::ConstPtr& message, do
     dropInvalid(pending, "header.stamp is 0 (unset: the driver did not stamp it)");
     return;
   }
+  tf_.observeSweep(pending.prepared.latest());  // the time line tf must serve
   const char* fallback = pending.prepared.timingFallback();
   if (fallback != nullptr && counters_.time_fallbacks++ == 0)
     report_(PipelineEvent::kTimeFallback, std::string(fallback) + " (counted)");

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <deque>
 #include <iterator>
 
 #include "lidar_deskew/ros/conversions.h"
@@ -93,18 +94,36 @@ bool TfFeed::add(const geometry_msgs::TransformStamped& transform_in, bool is_st
   }
   setParent(child, parent);
   const core::TimeNs stamp = toNs(transform.header.stamp);
-  noteDynamicParent(child, parent, stamp);
   const bool on_chain = chain_.count(child) > 0;
   if (on_chain) {
     // Each link against its own newest stamp: links of one chain may lag or lead each other by more
     // than a second (a localiser future-dating map -> odom), and that is no jump.
     const auto newest = newest_link_stamps_.find(child);
-    if (newest != newest_link_stamps_.end() && stamp + kTimeJumpNs < newest->second)
-      return holdBackward(transform);
+    if (newest != newest_link_stamps_.end() && std::abs(stamp - newest->second) > kTimeJumpNs) {
+      const bool back = stamp < newest->second;
+      switch (judge(newest->second, stamp)) {
+        case Verdict::kOld:
+          leaveOut(transform, newest->second);
+          return true;
+        case Verdict::kNew:
+          if (back) {
+            jumped_to_ = stamp;
+            notify(TfEvent::kTimeJump, "time went backwards (" + parent + " -> " + child + ", " +
+                                           formatNumber(core::nsToSeconds(newest->second - stamp)) +
+                                           " s, onto the time line of " + timeLineName() +
+                                           "): clearing the tf cache");
+            clearMotion(&transform);
+            return false;
+          }
+          break;  // ahead onto the time line: taken
+        case Verdict::kUndecided:
+          if (back)
+            return holdBackward(transform);
+          break;
+      }
+    }
     if (backward_.count(child) > 0)
       dropStale(child, stamp);
-    core::TimeNs& newest_stamp = newest_link_stamps_[child];
-    newest_stamp = std::max(newest_stamp, stamp);
   }
   bool taken = false;
   std::string refusal;
@@ -113,17 +132,94 @@ bool TfFeed::add(const geometry_msgs::TransformStamped& transform_in, bool is_st
   } catch (const std::exception& error) {  // a stamp within the cache time of ros::Time's end (2106)
     refusal = std::string(": ") + error.what();
   }
-  if (!taken) {
+  if (!taken) {  // no trace: the link's newest stamp, its parents and the knots stay as they were
     notify(TfEvent::kBadTransform, "tf2 refused /tf " + parent + " -> " + child + " at " +
                                        std::to_string(transform.header.stamp.toSec()) + refusal);
     return true;
   }
+  noteDynamicParent(child, parent, stamp);
   if (on_chain) {
+    core::TimeNs& newest_stamp = newest_link_stamps_[child];
+    newest_stamp = std::max(newest_stamp, stamp);
     motion_.addSampleTime(stamp);
     // One dynamic link straight from fixed to base: its stamps are all of the chain's samples.
     motion_.setSingleLink(chain_.size() == 1 && parent == fixed_frame_ && child == base_frame_);
   }
   return true;
+}
+
+TfFeed::Verdict TfFeed::judge(core::TimeNs newest, core::TimeNs stamp) const {
+  const std::optional<core::TimeNs> line = timeLine();
+  if (!line)
+    return Verdict::kUndecided;
+  const core::TimeNs to_old = std::abs(newest - *line), to_new = std::abs(stamp - *line);
+  if (to_old <= kNearNs && to_old + kCloserNs < to_new)
+    return Verdict::kOld;
+  if (to_new <= kNearNs && to_new + kCloserNs < to_old)
+    return Verdict::kNew;
+  return Verdict::kUndecided;  // a clock on another time line, or both as near
+}
+
+std::string TfFeed::timeLineName() const {
+  return sweep_ ? "the scans' stamps" : "the clock";
+}
+
+void TfFeed::leaveOut(const geometry_msgs::TransformStamped& transform, core::TimeNs newest) {
+  const core::TimeNs stamp = toNs(transform.header.stamp);
+  left_out_.push_back(transform);
+  if (left_out_.size() > kLeftOutKept)
+    left_out_.pop_front();
+  const bool back = stamp < newest;
+  const core::TimeNs off = std::abs(stamp - timeLine().value_or(newest));
+  notify(back ? TfEvent::kStaleIgnored : TfEvent::kAheadIgnored,
+         "ignoring /tf " + transform.header.frame_id + " -> " + transform.child_frame_id + " stamped " +
+             formatNumber(core::nsToSeconds(std::abs(newest - stamp))) + " s " + (back ? "before" : "after") +
+             " the link's newest, " + formatNumber(core::nsToSeconds(off)) + " s off the time line of " +
+             timeLineName() + ": " + (back ? "stale tf" : "tf ahead") +
+             " from another publisher? (on another clock)");
+}
+
+void TfFeed::observeClock(core::TimeNs now) {
+  clock_ = now;
+}
+
+void TfFeed::observeSweep(core::TimeNs latest) {
+  const core::TimeNs newest = newestChainTime();
+  if (newest != 0 && std::abs(latest - newest) > kFarNs)
+    return;  // an uninitialised stamp, never served: no time line
+  sweep_ = latest;
+  clock_at_sweep_ = clock_.value_or(0);
+  // The time line moved (a bag loop, a test rig starting a new time line): transforms left out as off
+  // the old one may be on it. Going back, that is a time jump, seen now, not at the next transform (the
+  // sweep may wait for tf that already came).
+  core::TimeNs back_to = 0;
+  std::string link;
+  for (const geometry_msgs::TransformStamped& transform : left_out_) {
+    const auto link_newest = newest_link_stamps_.find(transform.child_frame_id);
+    const core::TimeNs stamp = toNs(transform.header.stamp);
+    if (link_newest != newest_link_stamps_.end() && stamp < link_newest->second &&
+        judge(link_newest->second, stamp) == Verdict::kNew && (back_to == 0 || stamp < back_to)) {
+      back_to = stamp;
+      link = transform.header.frame_id + " -> " + transform.child_frame_id + ", " +
+             formatNumber(core::nsToSeconds(link_newest->second - stamp)) + " s";
+    }
+  }
+  if (back_to != 0) {
+    jumped_to_ = back_to;
+    notify(TfEvent::kTimeJump, "time went backwards (" + link + ", onto the time line of " + timeLineName() +
+                                   "): clearing the tf cache");
+    clearMotion(nullptr);
+    return;
+  }
+  // Ahead: taken as the link's time line going on.
+  for (geometry_msgs::TransformStamped& transform : takeBackLeftOut())
+    add(transform, false);
+}
+
+std::optional<core::TimeNs> TfFeed::timeLine() const {
+  if (sweep_)
+    return *sweep_ + (clock_ ? std::max<core::TimeNs>(0, *clock_ - clock_at_sweep_) : 0);
+  return clock_;
 }
 
 bool TfFeed::holdBackward(const geometry_msgs::TransformStamped& transform) {
@@ -133,10 +229,11 @@ bool TfFeed::holdBackward(const geometry_msgs::TransformStamped& transform) {
   if (in_a_row < kJumpConfirmations)
     return true;  // undecided: the old time line may still go on (a stray publisher of stale tf)
   const core::TimeNs back = newest_link_stamps_[child] - toNs(transform.header.stamp);
+  jumped_to_ = toNs(held_.front().header.stamp);
   notify(TfEvent::kTimeJump, "time went backwards (" + transform.header.frame_id + " -> " + child + ", " +
                                  formatNumber(core::nsToSeconds(back)) + " s, " + std::to_string(in_a_row) +
                                  " transforms in a row): clearing the tf cache");
-  forgetMotion();  // takes the held transforms again: they start the new time line
+  clearMotion(nullptr);  // takes the held transforms again: they start the new time line
   return false;
 }
 
@@ -173,16 +270,42 @@ void TfFeed::noteDynamicParent(const std::string& child, const std::string& pare
 }
 
 void TfFeed::forgetMotion() {
+  sweep_.reset();  // the sweeps' time line went with the clock: the clock decides until the next sweep
+  clearMotion(nullptr);
+}
+
+void TfFeed::clearMotion(const geometry_msgs::TransformStamped* first) {
+  // The transforms left out as off the old time line that the time line now says are real (the new
+  // one's that came before its first sweep) start it with `first`, in stamp order.
+  std::vector<geometry_msgs::TransformStamped> starting = takeBackLeftOut();
+  if (first)
+    starting.push_back(*first);
+  std::stable_sort(starting.begin(), starting.end(),
+                   [](const auto& a, const auto& b) { return a.header.stamp < b.header.stamp; });
   buffer_->clear();
   motion_.clearSampleTimes();
   newest_link_stamps_.clear();
   dynamic_parents_.clear();
   backward_.clear();
-  // Held transforms went back with the time: they are the new time line.
+  // The held transforms went back with the time: they are on the new time line too (each judged again).
   std::vector<geometry_msgs::TransformStamped> held;
   held.swap(held_);
+  for (const geometry_msgs::TransformStamped& transform : starting)
+    add(transform, false);
   for (const geometry_msgs::TransformStamped& transform : held)
     add(transform, false);
+}
+
+std::vector<geometry_msgs::TransformStamped> TfFeed::takeBackLeftOut() {
+  std::vector<geometry_msgs::TransformStamped> real;
+  for (const geometry_msgs::TransformStamped& transform : left_out_) {
+    const auto newest = newest_link_stamps_.find(transform.child_frame_id);
+    if (newest != newest_link_stamps_.end() &&
+        judge(newest->second, toNs(transform.header.stamp)) == Verdict::kNew)
+      real.push_back(transform);
+  }
+  left_out_.clear();
+  return real;
 }
 
 void TfFeed::rebuildWithout(const std::string& child) {
@@ -302,8 +425,8 @@ std::string TfFeed::whyNotCovered(core::TimeNs first, core::TimeNs last, core::T
     if (last > arrival + 1'000'000 && last < arrival + kLateStampNs) {
       return chain + " ends " + ms(last - newest) + " before the sweep's end, which lies " +
              ms(last - arrival) + " after the " +
-             "arrival: a driver stamping late (at the sweep's end, or with a delay)? " +
-             "deskew_calibrate finds time_offset from a recording";
+             "arrival: a driver stamping late (at the sweep's end, or with a delay)? Set time_offset " +
+             "(deskew_calibrate finds it from a recording), or give tf longer with a longer tf_timeout";
     }
     return chain + " has not reached the sweep's end: its newest is " + ms(last - newest) + " before it";
   }

@@ -18,6 +18,7 @@
 #include <fstream>
 #include <functional>
 #include <map>
+#include <optional>
 
 #include "lidar_deskew/bag/bag_calibrate.h"
 #include "lidar_deskew/bag/bag_deskew.h"
@@ -281,6 +282,121 @@ TEST(DeskewBag, BadStampsAndStaleTfCostNoScan) {
   const Calibration clean_calibration = calibrateBag(calibrate);
   EXPECT_EQ(calibration.estimate.scans, clean_calibration.estimate.scans);
   EXPECT_DOUBLE_EQ(calibration.estimate.time_offset, clean_calibration.estimate.time_offset);
+  for (const std::string& path : {input, output, clean_output})
+    std::remove(path.c_str());
+}
+
+/// The Neato recording with a second publisher of odom -> base_link on another clock: every
+/// `period` [s] of record time, the newest odometry stamped `offset` [s] off; `loops` copies of the
+/// recording one after the other in record time, their stamps as recorded (a bag recorded while one
+/// was played with -l, without --clock). Returns how many stray transforms it wrote.
+int writeWithStray(const std::string& path, double offset, double period, int loops = 1) {
+  rosbag::Bag in(kNeatoBag, rosbag::bagmode::Read), out(path, rosbag::bagmode::Write);
+  int stray = 0;
+  rosbag::View view(in);
+  const ros::Duration length = view.getEndTime() - view.getBeginTime() + ros::Duration(1.0);
+  for (int loop = 0; loop < loops; ++loop) {
+    const ros::Duration shift = length * loop;
+    std::optional<geometry_msgs::TransformStamped> odometry;  // the newest
+    double next_stray = 0.0;
+    for (const rosbag::MessageInstance& message : rosbag::View(in)) {
+      const ros::Time time = message.getTime() + shift;
+      out.write(message.getTopic(), time, message, message.getConnectionHeader());
+      if (message.getTopic() == "/tf") {
+        const auto transforms = message.instantiate<tf2_msgs::TFMessage>();  // alive through the loop
+        for (const auto& transform : transforms->transforms) {
+          if (transform.child_frame_id == "base_link")
+            odometry = transform;
+        }
+      }
+      if (!odometry || offset == 0.0)
+        continue;
+      if (next_stray == 0.0)
+        next_stray = time.toSec() + 1.0;
+      for (; next_stray <= time.toSec(); next_stray += period) {
+        tf2_msgs::TFMessage message_out;
+        message_out.transforms.push_back(*odometry);
+        message_out.transforms.back().header.stamp += ros::Duration(offset);
+        out.write("/tf", ros::Time(next_stray), message_out);
+        ++stray;
+      }
+    }
+  }
+  return stray;
+}
+
+// A second publisher of odom -> base_link on another clock, 3 s ahead at 2 Hz or 3 s behind at 200 Hz
+// (each of its messages passed for a time jump and cleared the tf cache). The scans' stamps tell the
+// real time line: the stray transforms are left out and counted, every scan comes out as from the
+// clean bag, bit for bit, and deskew_calibrate (tf 3 s ahead) finds the clean bag's timing from as
+// many scans and says what it left out. The recording played twice (stamps going back, record time going on)
+// is one jump.
+TEST(DeskewBag, StrayPublisherOnAnotherClockCostsNoScan) {
+  const std::string clean_output = temporary("stray_clean_out.bag");
+  BagDeskewOptions options;
+  options.input = kNeatoBag;
+  options.output = clean_output;
+  options.scan_topics = {"/stable_scan"};
+  const ros_adapter::PipelineCounters clean = deskewBag(options).counters.at("/stable_scan");
+  const auto corrected_clean = read<sensor_msgs::LaserScan>(clean_output, "/stable_scan_deskewed");
+  CalibrateOptions calibrate;
+  calibrate.scan_topic = "/stable_scan";
+  calibrate.input = kNeatoBag;
+  const Calibration clean_calibration = calibrateBag(calibrate);
+  std::string notes;
+  options.inform = [&](const std::string& note) { notes += note + "\n"; };
+  for (const double offset : {3.0, -3.0}) {
+    const std::string input = temporary("stray.bag"), output = temporary("stray_out.bag");
+    const int stray = writeWithStray(input, offset, offset > 0.0 ? 0.5 : 0.005);
+    options.input = input;
+    options.output = output;
+    notes.clear();
+    const ros_adapter::PipelineCounters counters = deskewBag(options).counters.at("/stable_scan");
+    std::printf(
+        "Neato with %d transforms %+.0f s off: %llu of %llu scans corrected (clean: %llu), %llu jumps\n",
+        stray, offset, static_cast<unsigned long long>(counters.published),
+        static_cast<unsigned long long>(counters.received), static_cast<unsigned long long>(clean.published),
+        static_cast<unsigned long long>(counters.time_jumps));
+    EXPECT_GE(stray, offset > 0.0 ? 20 : 2000);
+    EXPECT_EQ(counters.time_jumps, 0u) << offset;
+    EXPECT_EQ(counters.published, clean.published) << offset;
+    EXPECT_EQ(offset > 0.0 ? counters.ahead_tf : counters.stale_tf, static_cast<std::uint64_t>(stray));
+    EXPECT_NE(
+        notes.find(offset > 0.0 ? "tf ahead from another publisher?" : "stale tf from another publisher?"),
+        std::string::npos)
+        << notes;
+    const auto corrected = read<sensor_msgs::LaserScan>(output, "/stable_scan_deskewed");
+    ASSERT_EQ(corrected.size(), corrected_clean.size());
+    for (std::size_t k = 0; k < corrected.size(); ++k)
+      EXPECT_EQ(corrected[k]->ranges, corrected_clean[k]->ranges) << k;
+    std::remove(output.c_str());
+
+    if (offset < 0.0) {  // deskew_calibrate reads tf by the same rules: once is enough (seconds a reading)
+      std::remove(input.c_str());
+      continue;
+    }
+    calibrate.input = input;
+    const Calibration calibration = calibrateBag(calibrate);
+    EXPECT_EQ(calibration.tf_time_jumps, 0u);
+    EXPECT_EQ(calibration.tf_stale + calibration.tf_ahead, static_cast<std::size_t>(stray));
+    EXPECT_EQ(calibration.estimate.scans, clean_calibration.estimate.scans);
+    EXPECT_DOUBLE_EQ(calibration.estimate.time_offset, clean_calibration.estimate.time_offset);
+    EXPECT_NE(describe(calibration).find("transforms off the scans' time line left out"), std::string::npos);
+    std::remove(input.c_str());
+  }
+  // Played twice, with the stray publisher: one time jump, the second round corrected as the first
+  // (but for its first scan, which waited across the jump).
+  const std::string input = temporary("stray_loop.bag"), output = temporary("stray_loop_out.bag");
+  writeWithStray(input, 3.0, 0.5, 2);
+  options.input = input;
+  options.output = output;
+  const ros_adapter::PipelineCounters looped = deskewBag(options).counters.at("/stable_scan");
+  std::printf("Neato played twice with tf 3 s ahead: %llu of %llu scans corrected, %llu jumps\n",
+              static_cast<unsigned long long>(looped.published),
+              static_cast<unsigned long long>(looped.received),
+              static_cast<unsigned long long>(looped.time_jumps));
+  EXPECT_EQ(looped.time_jumps, 1u);
+  EXPECT_GE(looped.published + 1, 2 * clean.published);
   for (const std::string& path : {input, output, clean_output})
     std::remove(path.c_str());
 }

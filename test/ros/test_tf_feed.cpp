@@ -266,6 +266,98 @@ TEST(TfFeed, StaleTfOfAStrayPublisherIsLeftOutAndTheCacheKept) {
   EXPECT_EQ(fed.events[TfEvent::kTimeJump], 1);
 }
 
+// A transform tf2 refuses leaves no trace: one stamped near ros::Time's end (2106, tf2 throws on it)
+// moved the link's newest stamp there, so every real transform after it went back 'by 80 years' and
+// three in a row cleared the cache as a time jump.
+TEST(TfFeed, RefusedTransformDoesNotMoveTheLinksNewestStamp) {
+  Fed fed;
+  for (int k = 0; k <= 50; ++k)
+    fed.feed.add(kDrive.motionAt(0.02 * k), false);
+  geometry_msgs::TransformStamped refused = kDrive.motionAt(1.0);
+  refused.header.stamp =
+      ros_adapter::toRosTime((core::TimeNs{1} << 32) * 1'000'000'000 - core::secondsToNs(5.0));
+  EXPECT_TRUE(fed.feed.add(refused, false));
+  EXPECT_EQ(fed.events[TfEvent::kBadTransform], 1);
+  for (int k = 51; k <= 60; ++k)
+    EXPECT_TRUE(fed.feed.add(kDrive.motionAt(0.02 * k), false)) << k;
+  EXPECT_EQ(fed.events[TfEvent::kTimeJump], 0);
+  EXPECT_EQ(fed.events[TfEvent::kStaleIgnored], 0);
+  EXPECT_FALSE(fed.feed.jumpPending());
+  EXPECT_TRUE(fed.feed.covers(at(0.0), at(1.2)));  // nothing cleared
+  EXPECT_EQ(fed.feed.newestChainTime(), at(1.2));
+}
+
+// A second publisher of odom -> base_link on another clock, told apart by the time line tf must serve
+// (the scans' stamps, carried on by the owner's clock between scans): 3 s ahead at 2 Hz (it became
+// the link's newest, and the real tf after it went back: a false jump at each of its messages), 3 s
+// behind at 200 Hz (four in a row between two real ones: a false jump each time). Both are left out,
+// counted by kind, the cache kept, tf answering the true motion. The clock decides before any scan.
+// A real jump onto the scans' time line clears at once.
+TEST(TfFeed, StrayOnAnotherClockIsToldApartByTheScansTimeLine) {
+  for (const double offset : {3.0, -3.0}) {
+    Fed fed;
+    const int every = offset > 0.0 ? 100 : 1;  // of the 5 ms ticks: 2 Hz ahead, 200 Hz behind
+    for (int i = 0; i <= 2000; ++i) {          // 10 s
+      const double t = 0.005 * i;
+      fed.feed.observeClock(at(t + 0.01));  // the clock (another: record time), 10 ms on
+      if (i % 4 == 0)
+        fed.feed.add(kDrive.motionAt(t), false);
+      if (i % 5 == 0 && t >= 0.025)
+        fed.feed.observeSweep(at(t));  // a scan that ended at t arrives
+      if (i % every == 0 && t >= 0.5) {
+        geometry_msgs::TransformStamped stray = kDrive.motionAt(t);
+        stray.header.stamp = kDrive.stampOf(t + offset);
+        fed.feed.add(stray, false);
+      }
+    }
+    const TfEvent kind = offset > 0.0 ? TfEvent::kAheadIgnored : TfEvent::kStaleIgnored;
+    EXPECT_EQ(fed.events[kind], offset > 0.0 ? 20 : 1901) << offset;
+    EXPECT_EQ(fed.events[TfEvent::kTimeJump], 0) << offset;
+    EXPECT_FALSE(fed.feed.jumpPending());
+    EXPECT_EQ(fed.feed.newestChainTime(), at(10.0)) << offset;
+    EXPECT_TRUE(fed.feed.covers(at(0.5), at(10.0))) << offset;  // nothing cleared
+    for (const double t : {2.0, 5.5, 9.98}) {                   // at tf's samples
+      const mrpt::poses::CPose3D pose = fed.feed.motion().basePose(at(t));
+      EXPECT_NEAR(pose.x(), kDrive.trajectory.pose(t).x, 1e-9) << t;
+    }
+    EXPECT_TRUE(holds(fed.texts[kind], "3 s off the time line of the scans' stamps")) << fed.texts[kind];
+    // A bag loop (the clock going on): the scans' stamps go back, and the next tf goes back with them: a
+    // jump at once, the new time line served from that transform.
+    fed.feed.observeClock(at(10.1));
+    fed.feed.observeSweep(at(0.025));
+    EXPECT_FALSE(fed.feed.add(kDrive.motionAt(0.04), false));
+    EXPECT_EQ(fed.events[TfEvent::kTimeJump], 1);
+    EXPECT_EQ(fed.feed.jumpedTo(), at(0.04));
+    EXPECT_EQ(fed.feed.newestChainTime(), at(0.04));
+  }
+  // No scan yet: the owner's clock decides (a stray ahead is left out from its first message).
+  Fed clock_only;
+  for (int k = 0; k <= 100; ++k) {
+    clock_only.feed.observeClock(at(0.02 * k));
+    clock_only.feed.add(kDrive.motionAt(0.02 * k), false);
+    if (k % 25 == 10) {
+      geometry_msgs::TransformStamped stray = kDrive.motionAt(0.02 * k);
+      stray.header.stamp = kDrive.stampOf(0.02 * k + 3.0);
+      clock_only.feed.add(stray, false);
+    }
+  }
+  EXPECT_EQ(clock_only.events[TfEvent::kAheadIgnored], 4);
+  EXPECT_EQ(clock_only.events[TfEvent::kTimeJump], 0);
+  EXPECT_TRUE(holds(clock_only.texts[TfEvent::kAheadIgnored], "off the time line of the clock"));
+  // A clock on another time line (a bag's record time on the recorder's clock, far from the stamps)
+  // tells nothing: the transforms' own rule (three in a row going back) decides.
+  Fed far;
+  for (int k = 0; k <= 100; ++k) {
+    far.feed.observeClock(at(0.02 * k + 80.0));
+    far.feed.add(kDrive.motionAt(0.02 * k), false);
+  }
+  for (const double t : {0.0, 0.02})
+    far.feed.add(kDrive.motionAt(t), false);
+  EXPECT_TRUE(far.feed.jumpPending());
+  far.feed.add(kDrive.motionAt(0.04), false);
+  EXPECT_EQ(far.events[TfEvent::kTimeJump], 1);
+}
+
 // Stamps tf can never cover are told apart from late tf, and never throw: an uninitialised stamp in
 // 2105 (tf2 itself throws "Duration is out of dual 32-bit range" for it), 1970, both more than a day
 // from tf's newest; a stamp an hour ahead is merely not covered yet. A transform stamped within the
@@ -325,7 +417,10 @@ TEST(TfFeed, WhyNotCoveredNamesTheCause) {
   EXPECT_TRUE(holds(
       fed.feed.whyNotCovered(at(1.0), at(1.1), at(1.05)),
       "tf odom -> base_link ends 100.0 ms before the sweep's end, which lies 50.0 ms after the arrival"));
-  EXPECT_TRUE(holds(fed.feed.whyNotCovered(at(1.0), at(1.1), at(1.05)), "deskew_calibrate"));
+  // Every remedy offered: the offset (found by deskew_calibrate), or waiting longer.
+  EXPECT_TRUE(holds(fed.feed.whyNotCovered(at(1.0), at(1.1), at(1.05)),
+                    "Set time_offset (deskew_calibrate finds it from a recording), or give tf longer with a "
+                    "longer tf_timeout"));
   // The mount's frame known but not connected to the base.
   fed.feed.add(stamped("plate", "laser", kDrive.stampOf(0.0), {}), true);
   EXPECT_TRUE(holds(fed.feed.whyNoMount("laser"), "not connected to base_link"));

@@ -26,6 +26,9 @@ struct Calibration {
   double stamp_period_sigma = 0.0;  ///< [s]
   double sweep = 0.0;               ///< [s] first to last beam under the estimated period
   core::TimingEstimate estimate;
+  /// What the bag's tf did (loaded by the live node's rules): time jumps (each cleared the tf read
+  /// before it), transforms left out as off the scans' time line (stale, ahead), refused.
+  std::size_t tf_time_jumps = 0, tf_stale = 0, tf_ahead = 0, tf_refused = 0;
 };
 
 /// Reads the scans of the topic and the bag's tf (the live node's rules), and estimates. Throws

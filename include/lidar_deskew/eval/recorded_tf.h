@@ -4,6 +4,7 @@
 
 #include <rosbag/bag.h>
 
+#include <map>
 #include <memory>
 #include <string>
 #include <vector>
@@ -14,13 +15,17 @@
 namespace lidar_deskew::eval {
 
 /// Feeds every /tf and /tf_static message of `bag`, in record order, into a TfFeed whose cache spans
-/// the whole bag, so it answers for every scan; the live node's rules apply (docs/DESIGN.md §3). Notes
-/// (statics left out, time jumps) go to `notes` when given. Throws std::runtime_error naming the
-/// frames when tf never connects fixed_frame to base_frame.
-std::unique_ptr<ros_adapter::TfFeed> loadRecordedTf(rosbag::Bag& bag, const std::string& bag_path,
-                                                    const std::string& fixed_frame,
-                                                    const std::string& base_frame,
-                                                    std::string* notes = nullptr);
+/// the whole bag, so it answers for every scan; the live node's rules apply (docs/DESIGN.md §3): the
+/// stamps of the LaserScans on `scan_topics` (and before the first, the record time) are the time line
+/// tf must serve, which tells tf from a publisher on another clock from a time jump. Notes (statics
+/// left out, time jumps, tf off the time line) go to `notes`, and the events' counts by kind to
+/// `counts`, when given. Throws std::runtime_error naming the frames when tf never connects fixed_frame
+/// to base_frame.
+std::unique_ptr<ros_adapter::TfFeed> loadRecordedTf(
+    rosbag::Bag& bag, const std::string& bag_path, const std::string& fixed_frame,
+    const std::string& base_frame, std::string* notes = nullptr,
+    const std::vector<std::string>& scan_topics = {},
+    std::map<ros_adapter::TfEvent, std::size_t>* counts = nullptr);
 
 /// Leaves out of `scans` those whose stamp tf cannot take: 0 (unset), or far from tf's time line
 /// (TfFeed::coverage says never: an uninitialised stamp, another clock), as the node and deskew_bag

@@ -42,6 +42,9 @@ struct PipelineCounters {
   /// /tf transforms stamped over 1 s before their link's newest while its time line went on (a stray
   /// publisher of stale tf): left out, the tf cache kept.
   std::uint64_t stale_tf = 0;
+  /// /tf transforms stamped over 1 s after their link's newest, off the time line of the scans (or of
+  /// the clock before the first scan): a stray publisher on a clock ahead. Left out, the tf cache kept.
+  std::uint64_t ahead_tf = 0;
   /// Scans lost before the pipeline saw them (a driver's, the network's or roscpp's input queue), from
   /// gaps in header.seq; 0 when the driver leaves seq unset (0) or repeats it.
   std::uint64_t lost_upstream = 0;
@@ -67,7 +70,7 @@ enum class PipelineEvent {
   kStaticIgnored,  ///< a /tf_static parent of a moving frame left out (warning, once per frame)
   kTimeJump,       ///< time went backwards (warning)
   kBadTransform,   ///< a transform was refused (warning)
-  kStaleTf,        ///< stale /tf transforms left out (warning, once)
+  kStaleTf,        ///< stale /tf transforms left out, or ones ahead (warning, once for each)
   kTwoParents,     ///< a frame has two parents on /tf (warning, once per frame)
 };
 
@@ -173,7 +176,9 @@ class SweepPipeline {
   /// reset seen before any tf of the new time line, or alone), unless tf's stamps went back just before.
   void observeClock(double now);
   /// Fails every waiting scan (dropped without a mount, else per on_tf_failure): their tf will not come.
-  void failWaiting(const std::string& reason);
+  /// An empty `reason`: each with the cause TfFeed finds. With `new_time_line` [ns] (tf jumped back to
+  /// it), the scans whose latest time lies within 1 s of it keep waiting: their tf is the new one.
+  void failWaiting(const std::string& reason, core::TimeNs new_time_line = 0);
   /// Waiting::kRecording's serveReady: each scan decided alone once tf's newest passes its end.
   void serveRecorded(double now);
   /// [s] How long a scan waits for tf that does not come.

@@ -6,6 +6,7 @@
 #include <mrpt/poses/CPose3D.h>
 #include <tf2/buffer_core.h>
 
+#include <deque>
 #include <functional>
 #include <map>
 #include <memory>
@@ -25,6 +26,8 @@ enum class TfEvent {
   kTimeJump,       ///< a link's stamps went back by more than 1 s and went on so: the tf cache was cleared
   kStaleIgnored,   ///< a transform stamped over 1 s before its link's newest, the link's time line going on
                    ///< (a stray publisher of stale tf): left out, reported for each such transform
+  kAheadIgnored,   ///< a transform stamped over 1 s after its link's newest, off the time line of the
+                   ///< sweeps (a stray publisher on a clock ahead): left out, reported for each
   kTwoParents,     ///< a frame has two parents on /tf (once per frame)
   kBadTransform,   ///< a transform refused (by tf2, or for empty or equal frames, non-finite values)
   kMountFirst,     ///< the first mount of a scan frame
@@ -44,11 +47,17 @@ enum class Coverage {
 ///   out, whichever came first (tf2 would otherwise answer one pose for all times). Statics of frames
 ///   that do not move on /tf (REP-105's base_footprint -> base_link under a moving base_footprint, a
 ///   mount through a plate) are kept.
-/// - A dynamic link of the fixed -> base chain stamped more than 1 s before that link's own newest
-///   stamp is held back. When the new, earlier time line goes on (kJumpConfirmations such transforms
-///   of the link in a row) time went backwards (a bag loop, a /clock reset): the dynamic cache is
-///   cleared and the held transforms start the new time line. When the old time line goes on instead,
-///   the held ones were stale (a stray publisher): left out, the cache kept.
+/// - A dynamic link of the fixed -> base chain stamped more than 1 s before or after that link's own
+///   newest stamp leaves the link's time line. The time line tf must serve (timeLine(): the sweeps'
+///   stamps, else the owner's clock) tells which one is real when one of the two lies within
+///   kNearNs of it and closer by over kCloserNs: a transform off it is left out (stale or ahead, a
+///   stray publisher on another clock), the cache kept; one on it going back is a time jump at once
+///   (the cache cleared, the transform starting the new time line), going ahead is taken. When it
+///   cannot tell (no sweep, a clock on another time line), a transform going back is held back: when
+///   the new, earlier time line goes on (kJumpConfirmations such transforms of the link in a row)
+///   time went backwards (a bag loop, a /clock reset): the dynamic cache is cleared and the held
+///   transforms start the new time line. When the old time line goes on instead, the held ones were
+///   stale: left out, the cache kept.
 /// - A frame with two parents on /tf (map -> base_link beside odom -> base_link) is reported.
 /// - tf2's exceptions (its own, and ros::Time's "out of dual 32-bit range" for far stamps) are caught
 ///   here: a transform refused, a time tf cannot take.
@@ -76,14 +85,34 @@ class TfFeed {
   bool add(const geometry_msgs::TransformStamped& transform, bool is_static);
 
   /// Clears the dynamic tf (statics and the mounts seen stay): time went backwards on the owner's clock.
-  /// The next /tf is then taken as the new time line, not as a jump.
+  /// The next /tf is then taken as the new time line, not as a jump; the sweeps' time line is forgotten
+  /// until the next sweep (the clock decides meanwhile).
   void forgetMotion();
+
+  /// The owner's clock [ns] (record time offline; ROS time live, simulated or not), at every call.
+  /// Until a sweep is seen it is the time line tf must serve; after, it carries the newest sweep's
+  /// time on by the time elapsed on it.
+  void observeClock(core::TimeNs now);
+  /// A sweep's latest time [ns] (on its stamps' clock), at its arrival: the time line tf must serve.
+  /// Ignored when it lies more than kFarNs from tf's newest (an uninitialised stamp). Transforms left
+  /// out as off the time line that are on it now are taken back: going back, as a time jump (the cache
+  /// cleared, kTimeJump); going ahead, as the link's time line going on.
+  void observeSweep(core::TimeNs latest);
+  /// [ns] The time line tf must serve now: the newest sweep's latest time carried on by the owner's
+  /// clock since it arrived, else the owner's clock; nullopt when neither was given.
+  std::optional<core::TimeNs> timeLine() const;
 
   /// Transforms of a link going back in a row that make a time jump (fewer are held back undecided).
   static constexpr int kJumpConfirmations = 3;
   /// [ns] A sweep further than this from tf's newest time (either way) is never waited for: a clock
   /// mix-up or an uninitialised stamp, not late tf.
   static constexpr core::TimeNs kFarNs = 86'400'000'000'000;
+  /// [ns] A time line within this of timeLine() may be the one tf must serve (a scan's latest beam lies
+  /// near the real tf's newest: within tf's latency or the driver's). Further, it tells nothing: a
+  /// stray publisher's stale tf of before a bag loop may lie closer to the new scans than the old line.
+  static constexpr core::TimeNs kNearNs = 2'000'000'000;
+  /// [ns] Of two time lines of a link, the one closer to timeLine() by more than this is the real one.
+  static constexpr core::TimeNs kCloserNs = 500'000'000;
 
   /// True when tf answers fixed -> base at both times [ns].
   bool covers(core::TimeNs first, core::TimeNs last) const {
@@ -100,6 +129,8 @@ class TfFeed {
   /// Why there is no mount base_frame -> `frame` (normalised): the frame unknown to tf (with the closest
   /// known name) or not connected to the base.
   std::string whyNoMount(const std::string& frame) const;
+  /// [ns] The stamp of the transform that started the new time line at the last time jump (0: none).
+  core::TimeNs jumpedTo() const { return jumped_to_; }
   /// True while a link's stamps went back and it is not yet told whether time jumped or the
   /// transforms were stale.
   bool jumpPending() const { return !backward_.empty(); }
@@ -152,6 +183,20 @@ class TfFeed {
   /// Adds a dynamic transform of the chain's link `child` that went back by more than 1 s; returns
   /// false when it confirmed a time jump.
   bool holdBackward(const geometry_msgs::TransformStamped& transform);
+  /// Which of a link's two time lines, its newest `newest` and a transform's `stamp` [ns] more than 1 s
+  /// apart, timeLine() says is real.
+  enum class Verdict { kOld, kNew, kUndecided };
+  Verdict judge(core::TimeNs newest, core::TimeNs stamp) const;
+  /// Clears the dynamic tf and starts the new time line with `first` (when given), then the held
+  /// transforms.
+  void clearMotion(const geometry_msgs::TransformStamped* first);
+  /// The transforms left out that the time line now says are real (each judged against its link's
+  /// newest stamp); left_out_ is emptied.
+  std::vector<geometry_msgs::TransformStamped> takeBackLeftOut();
+  /// Leaves out a transform off the time line (stale or ahead of its link's `newest` [ns]), reported.
+  void leaveOut(const geometry_msgs::TransformStamped& transform, core::TimeNs newest);
+  /// What timeLine() follows: "the scans' stamps" or "the clock".
+  std::string timeLineName() const;
   /// The old time line of `child` went on: its held transforms were stale.
   void dropStale(const std::string& child, core::TimeNs newest);
   /// Records parent -> child from /tf; reports a second parent of `child`.
@@ -173,6 +218,13 @@ class TfFeed {
   std::map<std::string, mrpt::poses::CPose3D> mounts_;      // the last mount of each scan frame
   std::map<std::string, int> backward_;                     // by child: its transforms held in a row
   std::vector<geometry_msgs::TransformStamped> held_;       // the transforms going back, undecided
+  std::optional<core::TimeNs> clock_;                       // [ns] the owner's clock, as last given
+  std::optional<core::TimeNs> sweep_;                       // [ns] the newest sweep's latest time
+  core::TimeNs clock_at_sweep_ = 0;                         // [ns] the owner's clock when it arrived
+  core::TimeNs jumped_to_ = 0;  // [ns] the stamp that started the time line, at the last jump
+  /// The transforms left out last (off the time line), newest last: at most kLeftOutKept.
+  std::deque<geometry_msgs::TransformStamped> left_out_;
+  static constexpr std::size_t kLeftOutKept = 64;
   /// By child: its parents on /tf and the newest stamp [ns] of each (two at once: reported).
   std::map<std::string, std::map<std::string, core::TimeNs>> dynamic_parents_;
   std::map<std::string, std::string> two_parents_;  // child -> "a and b", each reported once
