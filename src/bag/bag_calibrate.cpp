@@ -77,7 +77,7 @@ Calibration calibrateBag(const CalibrateOptions& options) {
   const std::unique_ptr<ros_adapter::TfFeed> tf =
       eval::loadRecordedTf(bag, options.input, options.params.fixed_frame, options.params.base_frame);
   // Stamps tf cannot take (0, far from tf's time line: uninitialised) are left out (issue 23).
-  eval::dropStampsTfCannotTake(scans, *tf);
+  calibration.unusable_stamps = eval::dropStampsTfCannotTake(scans, *tf);
   std::string error;
   const auto mount = tf->mount(calibration.frame, error);
   if (!mount)
@@ -96,6 +96,9 @@ std::string describe(const Calibration& calibration) {
   text << calibration.scan_topic << " (frame " << calibration.frame << ", " << calibration.beams
        << " beams): " << estimate.scans << " scans, one every " << number(calibration.stamp_period * 1e3, 3)
        << " ms +- " << number(calibration.stamp_period_sigma * 1e3, 3) << " ms by their stamps\n";
+  if (estimate.left_out > 0 || calibration.unusable_stamps > 0)
+    text << "  left out: " << estimate.left_out << " scans tf does not cover (before its first sample or after "
+         << "its last), " << calibration.unusable_stamps << " with a stamp tf cannot take (0, another clock)\n";
   text << "  motion: " << estimate.turning_scans << " scans turn at " << number(estimate.turning_rate, 2)
        << " rad/s or faster (fastest " << number(estimate.fastest_turn, 2) << " rad/s); " << estimate.pairs
        << " overlapping pairs with motion, " << estimate.turning_pairs << " with a turning scan, "

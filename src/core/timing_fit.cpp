@@ -334,8 +334,16 @@ std::vector<PlacedScan> TimingFit::place(const TimingConfig& timing, std::vector
 
 std::vector<PlacedScan> TimingFit::placeRaw() const {
   std::vector<PlacedScan> placed;
-  for (const PlanarScan& scan : scans_)
-    placed.push_back(core::placeRaw(scan, motion_.basePose(scan.stamp) + mount_, scan.stamp));
+  placed.reserve(scans_.size());
+  for (const PlanarScan& scan : scans_) {
+    // The stamp itself may lie outside the motion when the scans were chosen under a shift (a scan at
+    // the recording's edge): that scan is left out of the raw measure, like any the motion misses.
+    try {
+      placed.push_back(core::placeRaw(scan, motion_.basePose(scan.stamp) + mount_, scan.stamp));
+    } catch (const MotionUnavailable&) {
+      placed.emplace_back();
+    }
+  }
   return placed;
 }
 
@@ -404,6 +412,7 @@ TimingEstimate estimateTiming(TimingFit& fit, const TimingFitConfig& config) {
   std::ostringstream counts;
   const auto count = [&] {
     estimate.scans = fit.scanCount();
+    estimate.left_out = fit.leftOut();
     estimate.pairs = fit.pairs().size();
     estimate.turning_scans = fit.turningScans();
     estimate.odometry_interval = fit.odometryInterval();

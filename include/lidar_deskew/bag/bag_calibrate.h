@@ -25,6 +25,7 @@ struct Calibration {
   double stamp_period = 0.0;        ///< [s] from the stamps
   double stamp_period_sigma = 0.0;  ///< [s]
   double sweep = 0.0;               ///< [s] first to last beam under the estimated period
+  std::size_t unusable_stamps = 0;  ///< scans left out: a stamp tf cannot take (0, another clock)
   core::TimingEstimate estimate;
 };
 

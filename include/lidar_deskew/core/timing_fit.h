@@ -89,6 +89,9 @@ class TimingFit {
   double shifted() const { return shift_; }
 
   std::size_t scanCount() const { return scans_.size(); }
+  /// Scans left out because the motion does not cover them from the (shifted) stamp to a period after
+  /// it: before the odometry's first sample or after its last.
+  std::size_t leftOut() const { return all_scans_.size() - scans_.size(); }
   const std::vector<ScanMotion>& motions() const { return motions_; }
   const std::vector<std::pair<std::size_t, std::size_t>>& pairs() const { return pairs_; }
   std::size_t turningScans() const;
@@ -109,7 +112,8 @@ class TimingFit {
   /// `needed`, when given, says which scans to place (the others are left empty).
   std::vector<PlacedScan> place(const TimingConfig& timing, std::vector<char>* placed = nullptr,
                                 bool coarse = false, const std::vector<char>* needed = nullptr) const;
-  /// The raw scans (every beam at the stamp) placed in the fixed frame.
+  /// The raw scans (every beam at the stamp) placed in the fixed frame; empty where the motion does not
+  /// cover the stamp.
   std::vector<PlacedScan> placeRaw() const;
   /// pairDistance() of every pair under `timing` [m]; NaN where a scan could not be placed.
   std::vector<double> pairDistances(const TimingConfig& timing) const;
@@ -177,6 +181,7 @@ struct TimingEstimate {
   std::size_t scans = 0, pairs = 0, turning_scans = 0, turning_pairs = 0;
   std::size_t changing_pairs = 0;  ///< pairs whose scans' turn rates differ by turning_rate or more
   std::size_t block_scans = 0;     ///< scans per bootstrap block
+  std::size_t left_out = 0;        ///< scans the motion does not cover (TimingFit::leftOut())
   double fastest_turn = 0.0;       ///< [rad/s]
   double turning_rate = 0.0;       ///< [rad/s] TimingFitConfig::turning_rate, as used
   double odometry_interval = 0.0;  ///< [s] TimingFit::odometryInterval()
