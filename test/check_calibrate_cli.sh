@@ -36,6 +36,7 @@ awk -v o="$offset" 'BEGIN { exit !(o < -0.02 && o > -0.2) }' || fail "neato: tim
 "$simulate" --scenario LDS-01/normal/translation --noise --bag "$work/line.bag" --truth "$work/line.truth" >/dev/null
 expect line 3 "$work/line.bag" --scan-topic /scan --output "$work/line.yaml"
 [ ! -e "$work/line.yaml" ] || fail "line: a file was written"
+grep -q "nothing told (too flat): the score is too flat" "$work/line.out" || fail "line: the flat score is not named"
 
 expect missing 1 "$neato" --scan-topic /no_such_topic
 
@@ -90,5 +91,11 @@ for mode in legacy_tf seq0; do
   expect $mode 0 "$work/$mode.bag" --scan-topic /scan --output "$work/$mode.yaml"
   grep -q '^beam_order: reversed$' "$work/$mode.yaml" || fail "$mode: beam_order reversed not found"
 done
-[ "$status" = 0 ] && echo "9 passed, 0 failed"
+# The scans' frame_id renamed halfway (both frames mounted alike): the change is named, the frame most
+# scans have is calibrated.
+edit frame_change "$work/turns.bag" "$work/frame_change.bag"
+expect frame_change 0 "$work/frame_change.bag" --scan-topic /scan --output "$work/frame_change.yaml"
+grep -q "frame_id changes midway: [0-9]* scans are in another frame than laser (laser_renamed: " \
+  "$work/frame_change.out" || fail "frame_change: the change of frame is not named"
+[ "$status" = 0 ] && echo "10 passed, 0 failed"
 exit "$status"

@@ -7,6 +7,7 @@
 
 #include <cstddef>
 #include <deque>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -55,6 +56,16 @@ struct TimingFitConfig {
   double max_uncertainty_share = 0.1;
   /// share of resamples that must prefer the chosen beam order (and period) for it to be told
   double min_confidence = 0.9;
+  /// the coarse score's minimum must lie this share of its median below the median
+  /// (TimingEstimate::curve_depth) for the timing to be told; below it the score is too flat
+  double min_curve_depth = 0.05;
+  /// [s] odometry whose samples lie at most this far apart (50 Hz, with jitter) is never blamed for an
+  /// uncertain offset
+  double fine_odometry_interval = 0.03;
+  /// [s] the period, when the user gives it (0: from the message and the stamps)
+  double given_period = 0.0;
+  /// the beam order, when the user gives it (none: both are tried)
+  std::optional<BeamOrder> given_order;
   std::size_t resamples = 200;  ///< bootstrap resamples for the uncertainties
   /// [s] the bootstrap draws blocks of consecutive scans this long (scans of one turn are not
   /// independent: their errors come from the same motion and odometry)
@@ -123,6 +134,8 @@ class TimingFit {
   /// measure (TimingFitConfig::coarse_consistency, tf's straight line between samples) on its pairs
   /// only (TimingFitConfig::coarse_pairs; the others unscored).
   std::vector<double> pairDistances(const TimingConfig& timing, std::vector<char>& scored, bool coarse) const;
+  /// The indices in pairs() of the pairs the coarse search scores, in order.
+  std::vector<std::size_t> coarsePairs() const;
 
  private:
   PlacedScan placeOne(std::size_t i, const TimingConfig& timing, ScanDeskewer& deskewer,
@@ -153,6 +166,8 @@ enum class TimingCause {
   kOdometryTooCoarse,  ///< the odometry's samples lie farther apart than a sweep: the offset is blurred
   kNoClearMinimum,     ///< the score has no clear minimum: the estimate is too uncertain or on the edge
   kWorseThanRaw,       ///< corrected with the best timing, scans agree less than raw ones
+  kTooFlat,            ///< the score barely changes with the offset over the whole range searched
+  kUndecided,          ///< the recording turns enough, yet the beam order or the period is undecided
 };
 /// A short name of the cause, e.g. "turning too uniform".
 std::string toString(TimingCause cause);
@@ -170,11 +185,15 @@ struct TimingEstimate {
   double offset_sigma = 0.0;  ///< [s] one standard deviation (block bootstrap over scans)
   double search_range = 0.0;  ///< [s] the offset was searched over +-this round the stamp
   bool on_edge = false;       ///< the best offset lay on the search window's edge (no estimate)
+  /// How far the coarse score's minimum over the whole range searched lies below its median, as a share
+  /// of the median (the chosen order and period, first search): 0 = flat, the offset cannot be told
+  double curve_depth = 0.0;
   double order_confidence = 0.0;   ///< share of resamples that prefer the estimated beam order
   double period_confidence = 1.0;  ///< ... the chosen period, where there were two candidates
   double period = 0.0;             ///< [s] the revolution period used
   double period_sigma = 0.0;       ///< [s] when estimated; 0 when the message's was kept
   bool period_estimated = false;   ///< the message's period was 0 or disagreed with the data
+  bool period_given = false;       ///< the period was the user's (TimingFitConfig::given_period)
   double message_period = 0.0;     ///< [s] the message's own (time_increment, else scan_time); 0 = none
   double sweep = 0.0;              ///< [s] first to last beam under `period` (when told)
   bool changed = false;            ///< differs from the message's own timing
