@@ -20,7 +20,7 @@ struct CalibrateOptions {
   core::TimingFitConfig fit;
   /// Scans the fit gets at most: a longer recording gives whole segments of `segment` [s], those that
   /// turn most (chooseScans): memory and time stay bounded whatever the recording's length.
-  std::size_t max_scans = 2400;
+  std::size_t max_scans = 1200;
   double segment = 10.0;
 };
 
