@@ -193,27 +193,6 @@ TEST(TimingFit, TooLittleTurningSaysTheScoreIsTooFlatAndHowMuchIsNeeded) {
   EXPECT_EQ(found.why.find("odometry"), std::string::npos) << found.why;
 }
 
-// A 40 Hz scanner with odometry at 50 Hz: samples 20 ms apart lie more than half a 25 ms sweep apart,
-// yet 50 Hz is what the advice asks for. An offset too uncertain to write (the bar set so low that any
-// is) is never blamed on the odometry's rate; the refusal gives the score's depth instead.
-TEST(TimingFit, FiftyHertzOdometryIsNeverBlamedForAnUncertainOffset) {
-  Drive drive;
-  drive.lidar = sim::LidarModel::utm30lx360();
-  drive.duration = 5.0;
-  const Recording recording = record(drive, 0.0, false, 1.0, false);
-  TimingFitConfig config;
-  config.max_uncertainty_share = 1e-6;
-  TimingFit fit(recording.scans, recording.mount, recording.motion, 0.0, config);
-  const TimingEstimate found = estimateTiming(fit, config);
-  ASSERT_TRUE(found.told) << found.why;
-  EXPECT_NEAR(found.odometry_interval, 0.02, 0.001);
-  EXPECT_FALSE(found.offset_told);
-  EXPECT_EQ(found.cause, TimingCause::kNoClearMinimum) << found.why;
-  EXPECT_EQ(found.why.find("odometry is too coarse"), std::string::npos) << found.why;
-  EXPECT_NE(found.why.find("below its median"), std::string::npos) << found.why;
-  EXPECT_NEAR(found.time_offset, 0.0, 0.0005);  // found, just not written
-}
-
 // A latency beyond the first window: the coarse search scores the whole range and takes its minimum.
 // Where the range ends before the latency, the best offset lies on the edge: no estimate, said so, the
 // message's offset kept.

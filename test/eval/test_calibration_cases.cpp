@@ -93,5 +93,26 @@ TEST_P(LongLatencies, FoundOnA40HzDriveWith50HzOdometry) {
 
 INSTANTIATE_TEST_SUITE_P(Seconds, LongLatencies, testing::Values(1.8, 2.5, 3.5));
 
+// The same 40 Hz drive with odometry at 50 Hz, its timing right: samples 20 ms apart lie more than half
+// a 25 ms sweep apart, yet 50 Hz is what the advice asks for. An offset too uncertain to write (the bar
+// set so low that any is) is never blamed on the odometry's rate; the refusal gives the score's depth.
+TEST(OdometryRate, FiftyHertzIsNeverBlamedForAnUncertainOffset) {
+  CalibrationCase recording;
+  recording.scenario = "UTM-30LX/normal/turns";
+  recording.fault = "none";
+  recording.seed = 50;
+  core::TimingFitConfig fit;
+  fit.max_uncertainty_share = 1e-6;
+  const CalibrationRun run = runCalibrationCase(recording, testing::TempDir(), false, fit);
+  const core::TimingEstimate& estimate = run.calibration.estimate;
+  ASSERT_TRUE(estimate.told) << estimate.why;
+  EXPECT_NEAR(estimate.odometry_interval, 0.02, 0.001);
+  EXPECT_FALSE(estimate.offset_told);
+  EXPECT_EQ(estimate.cause, core::TimingCause::kNoClearMinimum) << estimate.why;
+  EXPECT_EQ(estimate.why.find("odometry is too coarse"), std::string::npos) << estimate.why;
+  EXPECT_NE(estimate.why.find("below its median"), std::string::npos) << estimate.why;
+  EXPECT_NEAR(estimate.time_offset, 0.0, 0.0005);  // found, just not written
+}
+
 }  // namespace
 }  // namespace lidar_deskew::eval
