@@ -82,7 +82,8 @@ std::vector<char> chooseScans(const std::vector<core::TimeNs>& stamps, const std
   std::vector<std::size_t> order(segments.size());
   for (std::size_t k = 0; k < order.size(); ++k)
     order[k] = k;
-  std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return scores[a] > scores[b]; });
+  std::stable_sort(order.begin(), order.end(),
+                   [&](std::size_t a, std::size_t b) { return scores[a] > scores[b]; });
   keep.assign(stamps.size(), 0);
   std::size_t kept = 0;
   for (std::size_t k : order) {
@@ -159,7 +160,8 @@ Calibration calibrateBag(const CalibrateOptions& options) {
   for (std::size_t i = 0; i < index.size(); ++i) {
     if (!index[i].valid || index[i].frame != frame)
       continue;
-    if (index[i].stamp == 0 || tf->coverage(index[i].stamp, index[i].stamp) == ros_adapter::Coverage::kNever) {
+    if (index[i].stamp == 0 ||
+        tf->coverage(index[i].stamp, index[i].stamp) == ros_adapter::Coverage::kNever) {
       ++calibration.unusable_stamps;  // 0 or far from tf's time line (issue 23)
       continue;
     }
@@ -223,16 +225,19 @@ std::string describe(const Calibration& calibration) {
     text << "  the topic's frame_id changes midway: " << calibration.other_frame_scans
          << " scans are in another frame than " << calibration.frame << " (";
     for (std::size_t f = 0; f < calibration.other_frames.size(); ++f)
-      text << (f ? ", " : "") << calibration.other_frames[f].first << ": " << calibration.other_frames[f].second;
+      text << (f ? ", " : "") << calibration.other_frames[f].first << ": "
+           << calibration.other_frames[f].second;
     text << "); they are left out (each frame has its own mount), the " << calibration.frame
          << " scans calibrated\n";
   }
   if (calibration.not_chosen > 0)
-    text << "  " << calibration.not_chosen << " scans left out to keep to " << estimate.scans + estimate.left_out
-         << ": the 10 s segments that turn most are used\n";
+    text << "  " << calibration.not_chosen << " scans left out to keep to "
+         << estimate.scans + estimate.left_out << ": the 10 s segments that turn most are used\n";
   if (estimate.left_out > 0 || calibration.unusable_stamps > 0)
-    text << "  left out: " << estimate.left_out << " scans tf does not cover (before its first sample or after "
-         << "its last), " << calibration.unusable_stamps << " with a stamp tf cannot take (0, another clock)\n";
+    text << "  left out: " << estimate.left_out
+         << " scans tf does not cover (before its first sample or after "
+         << "its last), " << calibration.unusable_stamps
+         << " with a stamp tf cannot take (0, another clock)\n";
   text << "  motion: " << estimate.turning_scans << " scans turn at " << number(estimate.turning_rate, 2)
        << " rad/s or faster (fastest " << number(estimate.fastest_turn, 2) << " rad/s); " << estimate.pairs
        << " overlapping pairs with motion, " << estimate.turning_pairs << " with a turning scan, "
@@ -264,8 +269,8 @@ std::string describe(const Calibration& calibration) {
        << estimate.block_scans << "-scan blocks)\n";
   text << "  period: ";
   if (estimate.period_given) {
-    text << number(estimate.period * 1e3, 3) << " ms as given (the message's: "
-         << number(estimate.message_period * 1e3, 3) << " ms)\n";
+    text << number(estimate.period * 1e3, 3)
+         << " ms as given (the message's: " << number(estimate.message_period * 1e3, 3) << " ms)\n";
   } else if (estimate.period_estimated) {
     text << number(estimate.period * 1e3, 3) << " ms +- " << number(estimate.period_sigma * 1e3, 3)
          << " ms from the stamps; the message's "

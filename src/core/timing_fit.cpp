@@ -91,8 +91,7 @@ Curve merge(const Curve& a, const Curve& b, double cap) {
     for (std::size_t k = 0; k < part->offsets.size(); ++k)
       rows.emplace_back(part->offsets[k], &part->pairs[k]);
   }
-  std::sort(rows.begin(), rows.end(),
-            [](const auto& x, const auto& y) { return x.first < y.first; });
+  std::sort(rows.begin(), rows.end(), [](const auto& x, const auto& y) { return x.first < y.first; });
   for (const auto& [offset, row] : rows) {
     curve.offsets.push_back(offset);
     curve.pairs.push_back(*row);
@@ -190,8 +189,8 @@ Candidate search(const TimingFit& fit, const TimingConfig& timing, double period
     std::size_t k = 0, k_inner = 0;
     best = minimumOf(all.offsets, all.mean, &k).first;
     const double inner_best = minimumOf(inner.offsets, inner.mean, &k_inner).first;
-    const bool inside = all.offsets[k] > inner_grid.front() + 0.5 * step &&
-                        all.offsets[k] < inner_grid.back() - 0.5 * step;
+    const bool inside =
+        all.offsets[k] > inner_grid.front() + 0.5 * step && all.offsets[k] < inner_grid.back() - 0.5 * step;
     if (inside && k_inner != 0 && k_inner + 1 != inner.offsets.size()) {
       candidate.coarse = std::move(inner);
       best = inner_best;
@@ -711,7 +710,8 @@ TimingEstimate estimateTiming(TimingFit& fit, const TimingFitConfig& config) {
   estimate.period = chosen.period;
   estimate.period_estimated = chosen.period != estimate.message_period;
   estimate.period_given = config.given_period > 0.0;
-  estimate.period_sigma = estimate.period_estimated && !estimate.period_given ? fit.nominalPeriodSigma() : 0.0;
+  estimate.period_sigma =
+      estimate.period_estimated && !estimate.period_given ? fit.nominalPeriodSigma() : 0.0;
   for (std::size_t k = 0; k < chosen.coarse.offsets.size(); ++k)
     estimate.coarse_curve.emplace_back(chosen.coarse.offsets[k], chosen.coarse.mean[k]);
   for (std::size_t k = 0; k < chosen.fine.offsets.size(); ++k)
@@ -787,9 +787,8 @@ TimingEstimate estimateTiming(TimingFit& fit, const TimingFitConfig& config) {
                  << " ms apart (median over the sweeps), against a " << formatSeconds(estimate.period * 1e3)
                  << " ms sweep; record odometry at 50 Hz or more";
     else
-      offset_why << "; " << flatness(estimate.curve_depth, estimate.search_range)
-                 << ", with odometry every " << formatSeconds(estimate.odometry_interval * 1e3)
-                 << " ms and " << counts.str()
+      offset_why << "; " << flatness(estimate.curve_depth, estimate.search_range) << ", with odometry every "
+                 << formatSeconds(estimate.odometry_interval * 1e3) << " ms and " << counts.str()
                  << ": the scans' agreement changes little with the offset (odometry noise, a wrong mount, "
                     "moving objects)";
   }

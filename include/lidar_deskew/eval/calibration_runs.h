@@ -55,7 +55,8 @@ struct CalibrationRun {
 /// Simulates the case into `directory` (bag and truth), calibrates it (under `fit`) and, with `score`,
 /// scores the corrections against the truth. Throws std::runtime_error on failure.
 CalibrationRun runCalibrationCase(const CalibrationCase& recording, const std::string& directory,
-                                  bool score = true, const core::TimingFitConfig& fit = core::TimingFitConfig());
+                                  bool score = true,
+                                  const core::TimingFitConfig& fit = core::TimingFitConfig());
 
 /// One markdown table row of a run (see calibrationTableHeader()).
 std::string calibrationTableRow(const CalibrationRun& run);
