@@ -4,6 +4,7 @@
 #include <rosbag/view.h>
 #include <sensor_msgs/LaserScan.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -33,6 +34,69 @@ std::string consistency(const core::ConsistencySummary& summary) {
 
 }  // namespace
 
+namespace {
+
+/// One scan of the topic as the first pass sees it: where it is in the bag and whether it can serve.
+struct ScanIndex {
+  core::TimeNs stamp = 0;
+  std::size_t frame = 0;  ///< index into the frames seen
+  bool valid = false;
+};
+
+/// [rad/s] The base's turn rate from the stamp to the next scan's (at least 20 ms); 0 where tf does
+/// not cover it.
+double turnAt(const ros_adapter::TfFeed& tf, core::TimeNs stamp, core::TimeNs next) {
+  try {
+    return core::turnRate(tf.motion(), stamp, std::max(next, stamp + core::secondsToNs(0.02)));
+  } catch (const core::MotionUnavailable&) {
+    return 0.0;
+  }
+}
+
+}  // namespace
+
+std::vector<char> chooseScans(const std::vector<core::TimeNs>& stamps, const std::vector<double>& turn_rates,
+                              std::size_t max_scans, double segment, double turning_rate) {
+  std::vector<char> keep(stamps.size(), 1);
+  if (stamps.size() <= max_scans || stamps.empty())
+    return keep;
+  // Segments of `segment` seconds, each scored by its turning scans and its changes of turn rate
+  // (starting and stopping: what tells an offset), the best kept until max_scans.
+  const core::TimeNs length = core::secondsToNs(segment);
+  std::vector<std::pair<std::size_t, std::size_t>> segments;  // [first, end) scan indices
+  for (std::size_t i = 0; i < stamps.size();) {
+    std::size_t j = i;
+    while (j < stamps.size() && stamps[j] - stamps[i] < length)
+      ++j;
+    segments.emplace_back(i, j);
+    i = j;
+  }
+  std::vector<double> scores(segments.size(), 0.0);
+  for (std::size_t k = 0; k < segments.size(); ++k) {
+    for (std::size_t i = segments[k].first; i < segments[k].second; ++i) {
+      scores[k] += std::abs(turn_rates[i]) >= turning_rate;
+      if (i > segments[k].first && std::abs(turn_rates[i] - turn_rates[i - 1]) >= 0.5 * turning_rate)
+        scores[k] += 1.0;
+    }
+    scores[k] /= std::max<std::size_t>(1, segments[k].second - segments[k].first);
+  }
+  std::vector<std::size_t> order(segments.size());
+  for (std::size_t k = 0; k < order.size(); ++k)
+    order[k] = k;
+  std::stable_sort(order.begin(), order.end(),
+                   [&](std::size_t a, std::size_t b) { return scores[a] > scores[b]; });
+  keep.assign(stamps.size(), 0);
+  std::size_t kept = 0;
+  for (std::size_t k : order) {
+    const std::size_t size = segments[k].second - segments[k].first;
+    if (kept + size > max_scans)
+      continue;
+    std::fill(keep.begin() + segments[k].first, keep.begin() + segments[k].second, 1);
+    kept += size;
+  }
+  return keep;
+}
+
 Calibration calibrateBag(const CalibrateOptions& options) {
   rosbag::Bag bag = ros_adapter::openBagForReading(options.input);
   Calibration calibration;
@@ -50,31 +114,6 @@ Calibration calibrateBag(const CalibrateOptions& options) {
     }
     calibration.scan_topic = topics.front();
   }
-  std::vector<core::PlanarScan> scans;
-  for (const rosbag::MessageInstance& message :
-       rosbag::View(bag, rosbag::TopicQuery(std::vector<std::string>{calibration.scan_topic}))) {
-    const auto scan = message.instantiate<sensor_msgs::LaserScan>();
-    if (!scan)
-      continue;
-    core::PlanarScan planar = ros_adapter::fromMsg(*scan);
-    try {
-      core::validateScan(planar);
-    } catch (const core::InvalidInput&) {
-      continue;  // malformed: the node drops it too
-    }
-    if (calibration.frame.empty())
-      calibration.frame = ros_adapter::normalizedFrame(scan->header.frame_id);
-    calibration.beams = planar.ranges.size();
-    scans.push_back(std::move(planar));
-  }
-  if (scans.size() < 2) {
-    const std::vector<std::string> topics = laserScanTopics(bag);
-    std::string list;
-    for (const std::string& topic : topics)
-      list += " " + topic;
-    throw std::runtime_error(options.input + ": fewer than 2 valid LaserScans on " + calibration.scan_topic +
-                             " (LaserScan topics:" + list + ")");
-  }
   std::map<ros_adapter::TfEvent, std::size_t> tf_events;
   const std::unique_ptr<ros_adapter::TfFeed> tf =
       eval::loadRecordedTf(bag, options.input, options.params.fixed_frame, options.params.base_frame, nullptr,
@@ -83,8 +122,94 @@ Calibration calibrateBag(const CalibrateOptions& options) {
   calibration.tf_stale = tf_events[ros_adapter::TfEvent::kStaleIgnored];
   calibration.tf_ahead = tf_events[ros_adapter::TfEvent::kAheadIgnored];
   calibration.tf_refused = tf_events[ros_adapter::TfEvent::kBadTransform];
-  // Stamps tf cannot take (0, far from tf's time line: uninitialised) are left out (issue 23).
-  eval::dropStampsTfCannotTake(scans, *tf);
+  const rosbag::TopicQuery topic(std::vector<std::string>{calibration.scan_topic});
+
+  // First pass: each scan's stamp, frame and validity only (the bag is streamed: memory does not grow
+  // with the recording).
+  std::vector<ScanIndex> index;
+  std::vector<std::string> frames;
+  for (const rosbag::MessageInstance& message : rosbag::View(bag, topic)) {
+    const auto scan = message.instantiate<sensor_msgs::LaserScan>();
+    if (!scan)
+      continue;
+    ScanIndex entry;
+    const core::PlanarScan planar = ros_adapter::fromMsg(*scan);
+    entry.stamp = planar.stamp;
+    try {
+      core::validateScan(planar);
+      entry.valid = true;
+    } catch (const core::InvalidInput&) {
+      // malformed: the node drops it too
+    }
+    const std::string frame = ros_adapter::normalizedFrame(scan->header.frame_id);
+    entry.frame = std::find(frames.begin(), frames.end(), frame) - frames.begin();
+    if (entry.frame == frames.size())
+      frames.push_back(frame);
+    index.push_back(entry);
+  }
+  // A frame that changes midway: the scans of the frame most of them have, the others named.
+  std::vector<std::size_t> per_frame(frames.size(), 0);
+  for (const ScanIndex& entry : index)
+    per_frame[entry.frame] += entry.valid;
+  const std::size_t frame =
+      frames.empty() ? 0 : std::max_element(per_frame.begin(), per_frame.end()) - per_frame.begin();
+  if (!frames.empty())
+    calibration.frame = frames[frame];
+  for (std::size_t f = 0; f < frames.size(); ++f) {
+    if (f != frame) {
+      calibration.other_frames.emplace_back(frames[f], per_frame[f]);
+      calibration.other_frame_scans += per_frame[f];
+    }
+  }
+  // Which scans the fit gets: at most max_scans, whole segments chosen by turning.
+  std::vector<core::TimeNs> stamps;
+  std::vector<std::size_t> candidates;
+  for (std::size_t i = 0; i < index.size(); ++i) {
+    if (!index[i].valid || index[i].frame != frame)
+      continue;
+    if (index[i].stamp == 0 ||
+        tf->coverage(index[i].stamp, index[i].stamp) == ros_adapter::Coverage::kNever) {
+      ++calibration.unusable_stamps;  // 0 or far from tf's time line (issue 23)
+      continue;
+    }
+    candidates.push_back(i);
+    stamps.push_back(index[i].stamp);
+  }
+  std::vector<double> turn_rates(stamps.size(), 0.0);
+  if (stamps.size() > options.max_scans) {
+    for (std::size_t k = 0; k < stamps.size(); ++k)
+      turn_rates[k] = turnAt(*tf, stamps[k], k + 1 < stamps.size() ? stamps[k + 1] : stamps[k]);
+  }
+  const std::vector<char> chosen =
+      chooseScans(stamps, turn_rates, options.max_scans, options.segment, options.fit.turning_rate);
+  std::vector<char> wanted(index.size(), 0);
+  for (std::size_t k = 0; k < candidates.size(); ++k) {
+    wanted[candidates[k]] = chosen[k];
+    calibration.not_chosen += !chosen[k];
+  }
+  index.clear();
+  index.shrink_to_fit();
+
+  // Second pass: the chosen scans.
+  std::vector<core::PlanarScan> scans;
+  std::size_t position = 0;
+  for (const rosbag::MessageInstance& message : rosbag::View(bag, topic)) {
+    const auto scan = message.instantiate<sensor_msgs::LaserScan>();
+    if (!scan)
+      continue;
+    if (wanted[position++]) {
+      scans.push_back(ros_adapter::fromMsg(*scan));
+      calibration.beams = scans.back().ranges.size();
+    }
+  }
+  if (scans.size() < 2) {
+    const std::vector<std::string> topics = laserScanTopics(bag);
+    std::string list;
+    for (const std::string& name : topics)
+      list += " " + name;
+    throw std::runtime_error(options.input + ": fewer than 2 valid LaserScans on " + calibration.scan_topic +
+                             " (LaserScan topics:" + list + ")");
+  }
   std::string error;
   const auto mount = tf->mount(calibration.frame, error);
   if (!mount)
@@ -110,6 +235,23 @@ std::string describe(const Calibration& calibration) {
          << calibration.tf_stale << " behind, " << calibration.tf_ahead
          << " ahead: a second publisher on another clock?), " << calibration.tf_refused << " refused\n";
   }
+  if (!calibration.other_frames.empty()) {
+    text << "  the topic's frame_id changes midway: " << calibration.other_frame_scans
+         << " scans are in another frame than " << calibration.frame << " (";
+    for (std::size_t f = 0; f < calibration.other_frames.size(); ++f)
+      text << (f ? ", " : "") << calibration.other_frames[f].first << ": "
+           << calibration.other_frames[f].second;
+    text << "); they are left out (each frame has its own mount), the " << calibration.frame
+         << " scans calibrated\n";
+  }
+  if (calibration.not_chosen > 0)
+    text << "  " << calibration.not_chosen << " scans left out to keep to "
+         << estimate.scans + estimate.left_out << ": the 10 s segments that turn most are used\n";
+  if (estimate.left_out > 0 || calibration.unusable_stamps > 0)
+    text << "  left out: " << estimate.left_out
+         << " scans tf does not cover (before its first sample or after "
+         << "its last), " << calibration.unusable_stamps
+         << " with a stamp tf cannot take (0, another clock)\n";
   text << "  motion: " << estimate.turning_scans << " scans turn at " << number(estimate.turning_rate, 2)
        << " rad/s or faster (fastest " << number(estimate.fastest_turn, 2) << " rad/s); " << estimate.pairs
        << " overlapping pairs with motion, " << estimate.turning_pairs << " with a turning scan, "
@@ -123,7 +265,8 @@ std::string describe(const Calibration& calibration) {
   if (estimate.offset_told) {
     text << "  first beam - stamp: " << number(estimate.time_offset * 1e3, 2) << " ms +- "
          << number(estimate.offset_sigma * 1e3, 2) << " ms (1 sigma, searched over +-"
-         << number(estimate.search_range * 1e3, 0) << " ms); the sweep lasts "
+         << number(estimate.search_range * 1e3, 0) << " ms, the score's minimum "
+         << number(estimate.curve_depth * 100.0, 0) << " % below its median); the sweep lasts "
          << number(calibration.sweep * 1e3, 2) << " ms";
     if (timing.stamp_at == core::StampAt::kEnd)
       text << ": stamped at the end of the sweep";
@@ -139,7 +282,10 @@ std::string describe(const Calibration& calibration) {
        << " (held in " << number(estimate.order_confidence * 100.0, 0) << " % of resamples of "
        << estimate.block_scans << "-scan blocks)\n";
   text << "  period: ";
-  if (estimate.period_estimated) {
+  if (estimate.period_given) {
+    text << number(estimate.period * 1e3, 3)
+         << " ms as given (the message's: " << number(estimate.message_period * 1e3, 3) << " ms)\n";
+  } else if (estimate.period_estimated) {
     text << number(estimate.period * 1e3, 3) << " ms +- " << number(estimate.period_sigma * 1e3, 3)
          << " ms from the stamps; the message's "
          << (estimate.message_period > 0.0 ? "(" + number(estimate.message_period * 1e3, 3) + " ms) disagrees"

@@ -28,15 +28,17 @@ void printUsage(std::FILE* to, const char* program) {
       "What the recording cannot tell is said, not guessed. Exit status:\n"
       "  0  the whole timing told (written, or the message's fits)\n"
       "  4  the beam order and the period told and written, the offset not (the motion was too uniform,\n"
-      "     the odometry too coarse, or no clear minimum): the message's offset is kept\n"
-      "  3  nothing told (too little turning, too few overlapping pairs, no fit better than raw):\n"
-      "     nothing written\n"
+      "     the score too flat, the odometry too coarse, or no clear minimum): the message's offset is kept\n"
+      "  3  nothing told (too little turning or a score too flat, too few overlapping pairs, the beam\n"
+      "     order or the period undecided, no fit better than raw): nothing written\n"
       "  1  the bag, topic or tf could not be read; 2  bad arguments\n"
       "  --scan-topic T     the LaserScan topic (default: the bag's only one)\n"
       "  --output FILE      the parameter file to write (default: print only)\n"
       "  --curve FILE       write the score against the offset (CSV) for the chosen order and period\n"
       "  --turning-rate R   [rad/s] a scan turns when its base turns this fast (default 0.3); the\n"
       "                     offset needs pairs whose turn rates differ by R, the order turning scans\n"
+      "  --scan-period S    [s] one revolution, when you know it: not estimated (written as scan_period)\n"
+      "  --beam-order O     as_message or reversed, when you know it: not estimated\n"
       "  --fixed-frame F    the frame the base moves in (default odom)\n"
       "  --base-frame B     the robot's base frame (default base_link)\n"
       "  --cloud-topic T    refused: clouds carry their own per-point times (set time_offset by hand)\n"
@@ -64,7 +66,8 @@ int main(int argc, char** argv) {
       return 0;
     }
     if (arg == "--scan-topic" || arg == "--output" || arg == "--fixed-frame" || arg == "--base-frame" ||
-        arg == "--cloud-topic" || arg == "--curve" || arg == "--turning-rate") {
+        arg == "--cloud-topic" || arg == "--curve" || arg == "--turning-rate" || arg == "--scan-period" ||
+        arg == "--beam-order") {
       if (a + 1 >= argc)
         return usageError(argv[0], arg + " needs a value");
       const std::string value = argv[++a];
@@ -79,6 +82,19 @@ int main(int argc, char** argv) {
         options.fit.turning_rate = std::strtod(value.c_str(), &end);
         if (end == value.c_str() || *end != '\0' || !(options.fit.turning_rate > 0.0))
           return usageError(argv[0], "--turning-rate: a positive number of rad/s, got " + value);
+      } else if (arg == "--scan-period") {
+        char* end = nullptr;
+        options.fit.given_period = std::strtod(value.c_str(), &end);
+        if (end == value.c_str() || *end != '\0' || !(options.fit.given_period > 0.0) ||
+            options.fit.given_period > 10.0)
+          return usageError(argv[0], "--scan-period: one revolution in s (0-10], got " + value);
+      } else if (arg == "--beam-order") {
+        if (value == "as_message")
+          options.fit.given_order = core::BeamOrder::kAsMessage;
+        else if (value == "reversed")
+          options.fit.given_order = core::BeamOrder::kReversed;
+        else
+          return usageError(argv[0], "--beam-order: as_message or reversed, got " + value);
       } else if (arg == "--fixed-frame")
         frames["fixed_frame"] = value;
       else if (arg == "--base-frame")

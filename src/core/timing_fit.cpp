@@ -21,44 +21,82 @@ T medianOf(std::vector<T> values) {
   return values[values.size() / 2];
 }
 
-/// Scores of every pair at each offset of a grid, for one beam order and period. Only pairs that the
-/// motion places at every offset of the grid count (`scored`), so every offset is scored on the same
-/// pairs; a pair without overlap counts as the cap.
+/// Scores of the pairs a measure scores (the coarse search's or all) at each offset of a grid, for one
+/// beam order and period. Only pairs that the motion places at every offset of the grid count
+/// (`scored`), so every offset is scored on the same pairs; a pair without overlap counts as the cap.
+/// Only the pairs the measure scores are held: the coarse search's grid is long (+-max_search_range),
+/// and its pairs are bounded (TimingFitConfig::coarse_pairs), so its memory does not grow with the
+/// recording.
 struct Curve {
   TimingConfig timing;                     // time_offset varies along the grid
   std::vector<double> offsets;             // [s]
-  std::vector<std::vector<double>> pairs;  // [offset][pair] distance [m], the cap where no overlap
-  std::vector<char> scored;                // [pair] placed at every offset
+  std::vector<std::size_t> members;        // [member] the pair's index in TimingFit::pairs()
+  std::vector<std::vector<double>> pairs;  // [offset][member] distance [m], the cap where no overlap
+  std::vector<char> scored;                // [member] placed at every offset
   std::size_t scored_pairs = 0;
   std::vector<double> mean;  // [offset] over the scored pairs
 };
+
+void finish(Curve& curve, double cap) {
+  curve.scored_pairs = std::count(curve.scored.begin(), curve.scored.end(), 1);
+  curve.mean.clear();
+  for (const std::vector<double>& distances : curve.pairs) {
+    double sum = 0.0;
+    for (std::size_t m = 0; m < distances.size(); ++m)
+      sum += curve.scored[m] ? distances[m] : 0.0;
+    curve.mean.push_back(curve.scored_pairs ? sum / curve.scored_pairs : cap);
+  }
+}
 
 Curve evaluate(const TimingFit& fit, const TimingConfig& timing, const std::vector<double>& offsets,
                bool coarse, double cap) {
   Curve curve;
   curve.timing = timing;
   curve.offsets = offsets;
-  curve.scored.assign(fit.pairs().size(), 1);
+  if (coarse) {
+    curve.members = fit.coarsePairs();
+  } else {
+    curve.members.resize(fit.pairs().size());
+    for (std::size_t p = 0; p < curve.members.size(); ++p)
+      curve.members[p] = p;
+  }
+  curve.scored.assign(curve.members.size(), 1);
   std::vector<char> scored;
   for (double offset : offsets) {
     TimingConfig shifted = timing;
     shifted.time_offset = offset;
-    std::vector<double> distances = fit.pairDistances(shifted, scored, coarse);
-    for (std::size_t p = 0; p < distances.size(); ++p) {
-      curve.scored[p] = curve.scored[p] && scored[p];
-      if (!std::isfinite(distances[p]))
-        distances[p] = cap;
+    const std::vector<double> distances = fit.pairDistances(shifted, scored, coarse);
+    std::vector<double> row(curve.members.size());
+    for (std::size_t m = 0; m < curve.members.size(); ++m) {
+      const std::size_t p = curve.members[m];
+      curve.scored[m] = curve.scored[m] && scored[p];
+      row[m] = std::isfinite(distances[p]) ? distances[p] : cap;
     }
-    curve.pairs.push_back(std::move(distances));
+    curve.pairs.push_back(std::move(row));
   }
-  curve.scored_pairs = std::count(curve.scored.begin(), curve.scored.end(), 1);
-  const std::vector<double> ones(fit.pairs().size(), 1.0);
-  for (const std::vector<double>& distances : curve.pairs) {
-    double sum = 0.0;
-    for (std::size_t p = 0; p < distances.size(); ++p)
-      sum += curve.scored[p] ? distances[p] : 0.0;
-    curve.mean.push_back(curve.scored_pairs ? sum / curve.scored_pairs : cap);
+  finish(curve, cap);
+  return curve;
+}
+
+/// One curve of two of the same pairs, its offsets in order; a pair is scored where both score it.
+Curve merge(const Curve& a, const Curve& b, double cap) {
+  Curve curve;
+  curve.timing = a.timing;
+  curve.members = a.members;
+  curve.scored.resize(a.scored.size());
+  for (std::size_t m = 0; m < a.scored.size(); ++m)
+    curve.scored[m] = a.scored[m] && b.scored[m];
+  std::vector<std::pair<double, const std::vector<double>*>> rows;
+  for (const Curve* part : {&a, &b}) {
+    for (std::size_t k = 0; k < part->offsets.size(); ++k)
+      rows.emplace_back(part->offsets[k], &part->pairs[k]);
   }
+  std::sort(rows.begin(), rows.end(), [](const auto& x, const auto& y) { return x.first < y.first; });
+  for (const auto& [offset, row] : rows) {
+    curve.offsets.push_back(offset);
+    curve.pairs.push_back(*row);
+  }
+  finish(curve, cap);
   return curve;
 }
 
@@ -92,12 +130,12 @@ std::pair<double, double> minimumOf(const std::vector<double>& at, const std::ve
 std::vector<double> weightedMeans(const Curve& curve, const std::vector<double>& weights) {
   std::vector<double> means;
   double total = 0.0;
-  for (std::size_t p = 0; p < weights.size(); ++p)
-    total += curve.scored[p] ? weights[p] : 0.0;
+  for (std::size_t m = 0; m < curve.members.size(); ++m)
+    total += curve.scored[m] ? weights[curve.members[m]] : 0.0;
   for (const std::vector<double>& distances : curve.pairs) {
     double sum = 0.0;
-    for (std::size_t p = 0; p < distances.size(); ++p)
-      sum += curve.scored[p] ? weights[p] * distances[p] : 0.0;
+    for (std::size_t m = 0; m < distances.size(); ++m)
+      sum += curve.scored[m] ? weights[curve.members[m]] * distances[m] : 0.0;
     means.push_back(total > 0.0 ? sum / total : std::numeric_limits<double>::infinity());
   }
   return means;
@@ -111,28 +149,69 @@ struct Candidate {
   Curve coarse, fine;
   double range = 0.0;  // [s] the coarse window's half width
   bool on_edge = false;
+  double depth = 0.0;                // the coarse curve's depthOf() over the whole range searched
   double offset = 0.0, value = 0.0;  // the fine minimum
   std::size_t index = 0;             // its nearest fine grid point
 };
 
+/// How far the curve's minimum lies below its median, as a share of the median: 0 for a flat curve.
+double depthOf(const std::vector<double>& values) {
+  if (values.empty())
+    return 0.0;
+  const double median = medianOf(values);
+  const double lowest = *std::min_element(values.begin(), values.end());
+  return median > 0.0 ? (median - lowest) / median : 0.0;
+}
+
+/// `whole` [s]: when above `range`, the coarse search also scores the rest of +-whole round `center`
+/// and takes the minimum over all of it (a flat stretch near the stamp can hold a spurious minimum
+/// while the valley lies further out); the curve kept is the window's alone when the minimum lies
+/// inside it, off its edge (as a search of the window alone gives), else the whole one.
 Candidate search(const TimingFit& fit, const TimingConfig& timing, double period, double center, double range,
-                 const TimingFitConfig& config) {
+                 double whole, const TimingFitConfig& config) {
   Candidate candidate;
   candidate.timing = timing;
   candidate.period = period;
   const double step = std::min(config.coarse_step, period / 2.0);
+  const double cap = config.coarse_consistency.cap;
   candidate.range = range;
   double best = 0.0;
-  for (;;) {
-    candidate.coarse =
-        evaluate(fit, timing, grid(center, candidate.range, step), true, config.coarse_consistency.cap);
-    std::size_t k = 0;
-    best = minimumOf(candidate.coarse.offsets, candidate.coarse.mean, &k).first;
-    candidate.on_edge = k == 0 || k + 1 == candidate.coarse.offsets.size();
-    if (!candidate.on_edge || candidate.coarse.scored_pairs == 0 ||
-        2.0 * candidate.range > config.max_search_range + 1e-9)
-      break;
-    candidate.range *= 2.0;
+  if (whole > range) {
+    const std::vector<double> inner_grid = grid(center, range, step);
+    std::vector<double> outer_grid;
+    for (double offset : grid(center, whole, step)) {
+      if (offset < inner_grid.front() - 0.5 * step || offset > inner_grid.back() + 0.5 * step)
+        outer_grid.push_back(offset);
+    }
+    Curve inner = evaluate(fit, timing, inner_grid, true, cap);
+    Curve all = merge(inner, evaluate(fit, timing, outer_grid, true, cap), cap);
+    candidate.depth = depthOf(all.mean);
+    std::size_t k = 0, k_inner = 0;
+    best = minimumOf(all.offsets, all.mean, &k).first;
+    const double inner_best = minimumOf(inner.offsets, inner.mean, &k_inner).first;
+    const bool inside =
+        all.offsets[k] > inner_grid.front() + 0.5 * step && all.offsets[k] < inner_grid.back() - 0.5 * step;
+    if (inside && k_inner != 0 && k_inner + 1 != inner.offsets.size()) {
+      candidate.coarse = std::move(inner);
+      best = inner_best;
+      candidate.on_edge = false;
+    } else {
+      candidate.coarse = std::move(all);
+      candidate.range = whole;
+      candidate.on_edge = k == 0 || k + 1 == candidate.coarse.offsets.size();
+    }
+  } else {
+    for (;;) {
+      candidate.coarse = evaluate(fit, timing, grid(center, candidate.range, step), true, cap);
+      std::size_t k = 0;
+      best = minimumOf(candidate.coarse.offsets, candidate.coarse.mean, &k).first;
+      candidate.on_edge = k == 0 || k + 1 == candidate.coarse.offsets.size();
+      if (!candidate.on_edge || candidate.coarse.scored_pairs == 0 ||
+          2.0 * candidate.range > config.max_search_range + 1e-9)
+        break;
+      candidate.range *= 2.0;
+    }
+    candidate.depth = depthOf(candidate.coarse.mean);
   }
   // The fine search round the coarse best; the two measures' minima may lie apart (the fine one caps
   // at a fifth of the coarse one's distance), so the window moves on while its best lies on its edge.
@@ -153,7 +232,7 @@ Candidate search(const TimingFit& fit, const TimingConfig& timing, double period
 double compare(const Candidate& a, std::size_t ia, const Candidate& b, std::size_t ib,
                const std::vector<double>& weights) {
   double sum = 0.0, total = 0.0;
-  for (std::size_t p = 0; p < weights.size(); ++p) {
+  for (std::size_t p = 0; p < weights.size(); ++p) {  // fine curves hold every pair, in order
     if (a.fine.scored[p] && b.fine.scored[p]) {
       sum += weights[p] * (a.fine.pairs[ia][p] - b.fine.pairs[ib][p]);
       total += weights[p];
@@ -334,8 +413,16 @@ std::vector<PlacedScan> TimingFit::place(const TimingConfig& timing, std::vector
 
 std::vector<PlacedScan> TimingFit::placeRaw() const {
   std::vector<PlacedScan> placed;
-  for (const PlanarScan& scan : scans_)
-    placed.push_back(core::placeRaw(scan, motion_.basePose(scan.stamp) + mount_, scan.stamp));
+  placed.reserve(scans_.size());
+  for (const PlanarScan& scan : scans_) {
+    // The stamp itself may lie outside the motion when the scans were chosen under a shift (a scan at
+    // the recording's edge): that scan is left out of the raw measure, like any the motion misses.
+    try {
+      placed.push_back(core::placeRaw(scan, motion_.basePose(scan.stamp) + mount_, scan.stamp));
+    } catch (const MotionUnavailable&) {
+      placed.emplace_back();
+    }
+  }
   return placed;
 }
 
@@ -371,6 +458,15 @@ std::vector<double> TimingFit::pairDistances(const TimingConfig& timing, std::ve
   return distances;
 }
 
+std::vector<std::size_t> TimingFit::coarsePairs() const {
+  std::vector<std::size_t> indices;
+  for (std::size_t p = 0; p < coarse_pairs_.size(); ++p) {
+    if (coarse_pairs_[p])
+      indices.push_back(p);
+  }
+  return indices;
+}
+
 std::string toString(TimingCause cause) {
   switch (cause) {
     case TimingCause::kNone:
@@ -387,6 +483,10 @@ std::string toString(TimingCause cause) {
       return "no clear minimum";
     case TimingCause::kWorseThanRaw:
       return "worse than raw";
+    case TimingCause::kTooFlat:
+      return "too flat";
+    case TimingCause::kUndecided:
+      return "order or period undecided";
   }
   return "?";
 }
@@ -404,6 +504,7 @@ TimingEstimate estimateTiming(TimingFit& fit, const TimingFitConfig& config) {
   std::ostringstream counts;
   const auto count = [&] {
     estimate.scans = fit.scanCount();
+    estimate.left_out = fit.leftOut();
     estimate.pairs = fit.pairs().size();
     estimate.turning_scans = fit.turningScans();
     estimate.odometry_interval = fit.odometryInterval();
@@ -437,23 +538,50 @@ TimingEstimate estimateTiming(TimingFit& fit, const TimingFitConfig& config) {
                   "too few overlapping pairs of scans to tell the timing: " + std::to_string(estimate.pairs) +
                       " (at least " + std::to_string(config.min_turning_pairs) +
                       "); drive in sight of the same walls, within 3 m and 10 s");
+  const auto flatness = [&](double depth, double range) {
+    std::ostringstream text;
+    text << "the score's minimum over +-" << formatSeconds(range * 1e3) << " ms lies "
+         << formatSeconds(depth * 100.0) << " % below its median (at least "
+         << formatSeconds(config.min_curve_depth * 100.0) << " % needed)";
+    return text.str();
+  };
   if (estimate.turning_scans < config.min_turning_scans ||
       estimate.turning_pairs < config.min_turning_pairs) {
+    // How flat the score is under the message's order and period, over the whole range: a recording
+    // that does not turn leaves it flat, and that is what keeps the timing from showing.
+    TimingConfig message;
+    message.scan_period = estimate.period;
+    message.use_scan_period = true;
+    const double whole = std::max(config.max_search_range, config.search_periods * estimate.period);
+    const Candidate probe = search(fit, message, estimate.period, 0.0, whole, 0.0, config);
+    estimate.curve_depth = probe.depth;
+    estimate.search_range = probe.range;
     std::ostringstream why;
-    why << "too little turning to tell the timing: " << counts.str() << "; at least "
-        << config.min_turning_scans << " turning scans and " << config.min_turning_pairs
+    const bool flat = probe.depth < config.min_curve_depth;
+    why << (flat ? "the score is too flat to tell the timing: " + flatness(probe.depth, probe.range) +
+                       ", as too little turning leaves it: "
+                 : std::string("too little turning to tell the timing: "))
+        << counts.str() << "; at least " << config.min_turning_scans << " turning scans and "
+        << config.min_turning_pairs
         << " such pairs are needed (turn at 0.5-2 rad/s for a few seconds, starting and stopping, in sight "
            "of the same walls)";
-    return refuse(TimingCause::kTooLittleTurning, why.str());
+    return refuse(flat ? TimingCause::kTooFlat : TimingCause::kTooLittleTurning, why.str());
   }
 
   // Candidates: both beam orders under the message's period and, where it is 0 or disagrees with the
   // stamps by more than 5 %, the stamps' period.
   std::vector<double> periods;
-  if (estimate.message_period > 0.0)
-    periods.push_back(estimate.message_period);
-  if (estimate.message_period <= 0.0 || std::abs(estimate.message_period / nominal - 1.0) > 0.05)
-    periods.push_back(nominal);
+  if (config.given_period > 0.0) {
+    periods.push_back(config.given_period);  // the user's: no other candidate
+  } else {
+    if (estimate.message_period > 0.0)
+      periods.push_back(estimate.message_period);
+    if (estimate.message_period <= 0.0 || std::abs(estimate.message_period / nominal - 1.0) > 0.05)
+      periods.push_back(nominal);
+  }
+  std::vector<BeamOrder> orders{BeamOrder::kAsMessage, BeamOrder::kReversed};
+  if (config.given_order)
+    orders = {*config.given_order};
   std::vector<Candidate> candidates;
   std::size_t best = 0;
   std::vector<double> ones;
@@ -467,12 +595,13 @@ TimingEstimate estimateTiming(TimingFit& fit, const TimingFitConfig& config) {
   const auto searchAll = [&] {
     candidates.clear();
     for (double period : periods) {
-      for (BeamOrder order : {BeamOrder::kAsMessage, BeamOrder::kReversed}) {
+      for (BeamOrder order : orders) {
         TimingConfig timing;
         timing.beam_order = order;
         timing.scan_period = period;
         timing.use_scan_period = true;
-        candidates.push_back(search(fit, timing, period, fit.shifted(), range(period), config));
+        candidates.push_back(search(fit, timing, period, fit.shifted(), range(period),
+                                    second ? 0.0 : std::max(config.max_search_range, range(period)), config));
       }
     }
     // A candidate that cannot place most scans (a sweep longer than the motion covers) is out.
@@ -494,6 +623,7 @@ TimingEstimate estimateTiming(TimingFit& fit, const TimingFitConfig& config) {
   };
   searchAll();
   estimate.search_range = candidates.empty() ? 0.0 : candidates[best].range;
+  estimate.curve_depth = candidates.empty() ? 0.0 : candidates[best].depth;
   // Found an offset well away from the stamps (where one can show at all)? Then the scans and pairs are
   // chosen anew as if the stamps were that much later, and searched again: the same scans and pairs
   // whatever the stamps.
@@ -579,7 +709,9 @@ TimingEstimate estimateTiming(TimingFit& fit, const TimingFitConfig& config) {
   estimate.on_edge = chosen.on_edge;
   estimate.period = chosen.period;
   estimate.period_estimated = chosen.period != estimate.message_period;
-  estimate.period_sigma = estimate.period_estimated ? fit.nominalPeriodSigma() : 0.0;
+  estimate.period_given = config.given_period > 0.0;
+  estimate.period_sigma =
+      estimate.period_estimated && !estimate.period_given ? fit.nominalPeriodSigma() : 0.0;
   for (std::size_t k = 0; k < chosen.coarse.offsets.size(); ++k)
     estimate.coarse_curve.emplace_back(chosen.coarse.offsets[k], chosen.coarse.mean[k]);
   for (std::size_t k = 0; k < chosen.fine.offsets.size(); ++k)
@@ -587,14 +719,35 @@ TimingEstimate estimateTiming(TimingFit& fit, const TimingFitConfig& config) {
 
   if (estimate.order_confidence < config.min_confidence ||
       estimate.period_confidence < config.min_confidence) {
+    // The recording turned enough (checked above): what is undecided is the order or the period
+    // itself, and the user who knows it can give it.
     std::ostringstream why;
-    why << "the recording cannot tell the beam order" << (period_rival ? " and the period" : "")
-        << ": the order held in " << formatSeconds(estimate.order_confidence * 100.0) << " % of resamples";
-    if (period_rival)
-      why << ", the period in " << formatSeconds(estimate.period_confidence * 100.0) << " %";
-    why << " (at least " << formatSeconds(config.min_confidence * 100.0) << " % needed); " << counts.str()
-        << ". Record more turning (0.5-2 rad/s, starting and stopping, in sight of the same walls)";
-    return refuse(TimingCause::kTooLittleTurning, why.str());
+    const bool period_open = estimate.period_confidence < config.min_confidence;
+    const bool order_open = estimate.order_confidence < config.min_confidence;
+    why << "undecided: ";
+    if (period_open) {
+      why << "the period: the stamps say one scan every " << formatSeconds(nominal * 1e3) << " ms (+- "
+          << formatSeconds(fit.nominalPeriodSigma() * 1e3) << " ms), the message "
+          << (estimate.message_period > 0.0 ? formatSeconds(estimate.message_period * 1e3) + " ms"
+                                            : std::string("nothing"))
+          << "; " << formatSeconds(chosen.period * 1e3) << " ms held in "
+          << formatSeconds(estimate.period_confidence * 100.0) << " % of resamples";
+    }
+    if (order_open) {
+      why << (period_open ? "; " : "") << "the beam order: "
+          << (chosen.timing.beam_order == BeamOrder::kReversed ? "reversed" : "as the message says")
+          << " held in " << formatSeconds(estimate.order_confidence * 100.0) << " % of resamples";
+    }
+    why << " (at least " << formatSeconds(config.min_confidence * 100.0)
+        << " % needed), although the recording turns enough (" << counts.str() << ")";
+    if (period_open)
+      why << ". If you know the period, give it: deskew_calibrate --scan-period S (the node's scan_period "
+             "with use_scan_period: true)";
+    if (order_open)
+      why << ". If you know the beam order, give it: deskew_calibrate --beam-order as_message|reversed "
+             "(the node's beam_order)";
+    why << "; odometry that disagrees with the scans' turn, or a wrong mount, also blurs them";
+    return refuse(TimingCause::kUndecided, why.str());
   }
 
   // The offset: told when its minimum lies inside the window, its uncertainty is small against the
@@ -610,13 +763,20 @@ TimingEstimate estimateTiming(TimingFit& fit, const TimingFitConfig& config) {
                << counts.str() << "; at least " << config.min_changing_pairs
                << " are needed). Under a constant twist a constant offset moves every scan by the same rigid "
                   "transform, which no comparison of scans can see; turn, starting and stopping, to see it";
+  } else if (estimate.curve_depth < config.min_curve_depth) {
+    offset_cause = TimingCause::kTooFlat;
+    offset_why << "the score is too flat to tell the offset: "
+               << flatness(estimate.curve_depth, estimate.search_range) << "; " << seen;
   } else if (chosen.on_edge) {
     offset_cause = TimingCause::kNoClearMinimum;
     offset_why << "no offset within +-" << formatSeconds(chosen.range * 1e3)
                << " ms fits: the best lies on the search window's edge ("
                << formatSeconds(chosen.offset * 1e3) << " ms), which is no estimate";
   } else if (estimate.offset_sigma > config.max_uncertainty_share * estimate.period) {
-    const bool coarse_odometry = estimate.odometry_interval >= 0.5 * estimate.period;
+    // The odometry is blamed only where its samples lie half a sweep or more apart and it is slower
+    // than the rate the advice names: a 40 Hz scanner with 50 Hz odometry is not held back by it.
+    const bool coarse_odometry = estimate.odometry_interval >= 0.5 * estimate.period &&
+                                 estimate.odometry_interval > config.fine_odometry_interval;
     offset_cause = coarse_odometry ? TimingCause::kOdometryTooCoarse : TimingCause::kNoClearMinimum;
     offset_why << "the offset is too uncertain to write: " << seen << " (at most "
                << formatSeconds(config.max_uncertainty_share * estimate.period * 1e3) << " ms, "
@@ -625,9 +785,12 @@ TimingEstimate estimateTiming(TimingFit& fit, const TimingFitConfig& config) {
       offset_why << "; the odometry is too coarse: its samples lie "
                  << formatSeconds(estimate.odometry_interval * 1e3)
                  << " ms apart (median over the sweeps), against a " << formatSeconds(estimate.period * 1e3)
-                 << " ms sweep; record odometry at 20 Hz or more";
+                 << " ms sweep; record odometry at 50 Hz or more";
     else
-      offset_why << "; record more turning, starting and stopping, in sight of the same walls";
+      offset_why << "; " << flatness(estimate.curve_depth, estimate.search_range) << ", with odometry every "
+                 << formatSeconds(estimate.odometry_interval * 1e3) << " ms and " << counts.str()
+                 << ": the scans' agreement changes little with the offset (odometry noise, a wrong mount, "
+                    "moving objects)";
   }
   estimate.offset_told = offset_cause == TimingCause::kNone;
   estimate.time_offset = chosen.offset;

@@ -108,7 +108,7 @@ std::vector<CalibrationCase> coverageCases(std::size_t count, unsigned seed) {
 }
 
 CalibrationRun runCalibrationCase(const CalibrationCase& recording, const std::string& directory,
-                                  bool score_it) {
+                                  bool score_it, const core::TimingFitConfig& fit) {
   const std::string stem = directory + "/calibration_" + std::to_string(recording.seed);
   const std::string bag_path = stem + ".bag", truth_path = stem + ".truth";
   sim::SimBagOptions options;
@@ -127,6 +127,7 @@ CalibrationRun runCalibrationCase(const CalibrationCase& recording, const std::s
   bag::CalibrateOptions calibrate;
   calibrate.input = bag_path;
   calibrate.scan_topic = "/scan";
+  calibrate.fit = fit;
   run.calibration = bag::calibrateBag(calibrate);
   run.true_offset = truth.timeOffset();
   run.true_reversed = truth.timing_fault.reversed;

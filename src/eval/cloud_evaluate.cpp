@@ -2,6 +2,7 @@
 
 #include <rosbag/bag.h>
 #include <rosbag/view.h>
+#include <tf2/exceptions.h>
 
 #include <memory>
 #include <stdexcept>
@@ -91,18 +92,29 @@ CloudEvaluation evaluateCloudBag(const std::string& bag_path, const std::string&
     if (!mount)
       throw std::runtime_error(bag_path + ": no mount: " + error);
     const sim::Pose3 reference = truth.sensorPose(prepared.first);
+    std::vector<ros_adapter::PreparedCloud> corrected_clouds;  // ours, per point
+    mrpt::poses::CPose3D first, last;
+    try {
+      for (ros_adapter::CloudProcessor* processor : {&ours, &per_point}) {
+        const ros_adapter::CloudOutputs out = processor->correct(prepared, *mount, tf->motion());
+        corrected_clouds.push_back(ours.prepare(out.cloud));  // reads x y z back
+      }
+      first = tf->motion().basePose(prepared.first) + *mount;
+      last = tf->motion().basePose(prepared.last) + *mount;
+    } catch (const core::MotionUnavailable&) {
+      ++evaluation.left_out;  // tf does not cover the sweep (the recording's edges): left out, counted
+      continue;
+    } catch (const tf2::TransformException&) {
+      ++evaluation.left_out;
+      continue;
+    }
     ++evaluation.clouds;
 
     addDistances(world, reference, returnsOf(prepared), raw);
     addDistances(world, reference, truthCorrected(prepared, truth, reference), noise_floor);
-    for (ros_adapter::CloudProcessor* processor : {&ours, &per_point}) {
-      const ros_adapter::CloudOutputs out = processor->correct(prepared, *mount, tf->motion());
-      const ros_adapter::PreparedCloud corrected_cloud = ours.prepare(out.cloud);  // reads x y z back
-      addDistances(world, reference, returnsOf(corrected_cloud), processor == &ours ? corrected : exact);
-    }
+    addDistances(world, reference, returnsOf(corrected_clouds[0]), corrected);
+    addDistances(world, reference, returnsOf(corrected_clouds[1]), exact);
     // Constant velocity between the poses at the first and last return (lerp + slerp), composed with MRPT.
-    const mrpt::poses::CPose3D first = tf->motion().basePose(prepared.first) + *mount;
-    const mrpt::poses::CPose3D last = tf->motion().basePose(prepared.last) + *mount;
     const double span = std::max<double>(1, prepared.last - prepared.first);
     std::vector<Eigen::Vector3d> interpolated;
     for (std::size_t i = 0; i < prepared.points.size(); ++i) {

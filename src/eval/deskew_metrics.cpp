@@ -138,6 +138,8 @@ int main(int argc, char** argv) {
     } else {
       std::printf("scenario        %s (%zu scans, range noise %.0f mm)\n", result.scenario.c_str(),
                   result.scans, result.range_sigma_mm);
+      if (result.left_out > 0)
+        std::printf("left out        %zu scans tf does not cover\n", result.left_out);
       std::printf("distance to the true walls [mm]  RMS / p95 / max\n");
       std::printf("  raw            %s  (%zu points)\n", triple(result.raw).c_str(), result.raw.count);
       std::printf("  corrected      %s  (%zu points)\n", triple(result.cloud).c_str(), result.cloud.count);

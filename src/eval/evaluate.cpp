@@ -5,6 +5,7 @@
 #include <rosbag/view.h>
 #include <sensor_msgs/LaserScan.h>
 #include <sensor_msgs/point_cloud2_iterator.h>
+#include <tf2/exceptions.h>
 
 #include <algorithm>
 #include <cmath>
@@ -119,6 +120,12 @@ Evaluation evaluateBag(const std::string& bag_path, const std::string& truth_pat
       projector.transformLaserScanToPointCloud(message.header.frame_id, message, projected,
                                                options.fixed_frame, tf->buffer(), -1.0,
                                                laser_geometry::channel_option::Index);
+    } catch (const core::MotionUnavailable&) {
+      ++evaluation.left_out;  // tf does not cover the sweep (the recording's edges): left out, counted
+      continue;
+    } catch (const tf2::TransformException&) {
+      ++evaluation.left_out;  // ... nor laser_geometry's lookups
+      continue;
     } catch (const std::exception& error) {
       throw std::runtime_error(bag_path + ": scan " + std::to_string(k) + ": " + error.what());
     }
@@ -183,6 +190,9 @@ Evaluation evaluateBag(const std::string& bag_path, const std::string& truth_pat
       writeFigureCsv(options.figure_csv, truth, scan, timing, corrected, rebinned, laser_geometry_world);
     }
   }
+  evaluation.scans = scans.size() - evaluation.left_out;
+  if (evaluation.scans == 0)
+    throw std::runtime_error(bag_path + ": tf covers none of the " + std::to_string(scans.size()) + " scans");
   evaluation.raw = sim::errorStats(raw).scaled(1e3);
   evaluation.cloud = sim::errorStats(cloud).scaled(1e3);
   evaluation.scan = sim::errorStats(rebinned_scan).scaled(1e3);

@@ -179,19 +179,24 @@ TEST(TimingFit, FindsReversedBeamsAndAZeroPeriod) {
   EXPECT_NEAR(doubled.time_offset, 0.0, 0.0005);
 }
 
-TEST(TimingFit, TooLittleTurningSaysSoAndHowMuchIsNeeded) {
+// Driving straight, no scan turns: every offset places the scans alike, the score is flat over the
+// whole range, and the refusal says so with the figure, and what turning is missing.
+TEST(TimingFit, TooLittleTurningSaysTheScoreIsTooFlatAndHowMuchIsNeeded) {
   Drive straight;
   straight.trajectory = sim::PiecewiseTrajectory(sim::Pose2{-6.0, 0.0, 0.0}, {{10.0, 0.8, 0.0, 0.0}});
   const TimingEstimate found = estimate(record(straight, 0.03, false, 1.0));
   EXPECT_FALSE(found.told);
-  EXPECT_EQ(found.cause, TimingCause::kTooLittleTurning);
-  EXPECT_NE(found.why.find("too little turning"), std::string::npos) << found.why;
+  EXPECT_EQ(found.cause, TimingCause::kTooFlat);
+  EXPECT_LT(found.curve_depth, 0.05);
+  EXPECT_NE(found.why.find("too flat"), std::string::npos) << found.why;
   EXPECT_NE(found.why.find("at least 10 turning scans"), std::string::npos) << found.why;
+  EXPECT_EQ(found.why.find("odometry"), std::string::npos) << found.why;
 }
 
-// A latency beyond the first window: the window doubles until the minimum lies inside it. Where it may
-// not grow far enough, the best offset lies on the edge: no estimate, said so, the message's offset kept.
-TEST(TimingFit, WidensTheWindowOrSaysTheMinimumIsOnItsEdge) {
+// A latency beyond the first window: the coarse search scores the whole range and takes its minimum.
+// Where the range ends before the latency, the best offset lies on the edge: no estimate, said so, the
+// message's offset kept.
+TEST(TimingFit, SearchesTheWholeRangeOrSaysTheMinimumIsOnItsEdge) {
   const Drive drive;
   const Recording recording = record(drive, 0.3, false, 1.0);
   TimingFitConfig config;
@@ -202,7 +207,7 @@ TEST(TimingFit, WidensTheWindowOrSaysTheMinimumIsOnItsEdge) {
   const TimingEstimate found = estimateTiming(widening, config);
   ASSERT_TRUE(found.offset_told) << found.why;
   EXPECT_NEAR(found.time_offset, -0.3, 0.0005);
-  EXPECT_NEAR(found.search_range, 0.4, 1e-9);  // 0.1 -> 0.2 -> 0.4
+  EXPECT_NEAR(found.search_range, 0.8, 1e-9);  // the whole range
   EXPECT_FALSE(found.on_edge);
 
   config.max_search_range = 0.2;

@@ -69,5 +69,50 @@ TEST_P(CalibrationCases, EstimateMeetsTheTargets) {
 // all 32.
 INSTANTIATE_TEST_SUITE_P(CheapSensors, CalibrationCases, testing::Values(0, 2, 6, 11, 16, 22, 24, 29));
 
+// Latencies of seconds on a 15 s UTM-30LX drive (40 Hz, odometry at 50 Hz): the score is flat within
+// +-1 s of the stamp and has a minimum there that is no valley; the coarse search scores its whole
+// range (+-4 s) and finds the valley beyond it. Before, 1.8-3.5 s were "not told" and blamed on the
+// odometry ("record odometry at 20 Hz or more", while it was at 50 Hz).
+class LongLatencies : public testing::TestWithParam<double> {};
+
+TEST_P(LongLatencies, FoundOnA40HzDriveWith50HzOdometry) {
+  CalibrationCase recording;
+  recording.scenario = "UTM-30LX/normal/turns";
+  recording.timing_fault.stamp_error = GetParam();
+  recording.fault = "stamp late by seconds";
+  recording.seed = 40 + static_cast<unsigned>(GetParam() * 10.0);
+  const CalibrationRun run = runCalibrationCase(recording, testing::TempDir(), false);
+  const core::TimingEstimate& estimate = run.calibration.estimate;
+  ASSERT_TRUE(estimate.told) << estimate.why;
+  ASSERT_TRUE(estimate.offset_told) << estimate.why;
+  EXPECT_NEAR(estimate.time_offset, -GetParam(), 0.0005);
+  EXPECT_LE(std::abs(run.offset_error), std::max(0.0005, 2.0 * estimate.offset_sigma));
+  EXPECT_TRUE(run.order_right);
+  EXPECT_EQ(estimate.why.find("odometry"), std::string::npos) << estimate.why;
+}
+
+INSTANTIATE_TEST_SUITE_P(Seconds, LongLatencies, testing::Values(1.8, 2.5, 3.5));
+
+// The same 40 Hz drive with odometry at 50 Hz, its timing right: samples 20 ms apart lie more than half
+// a 25 ms sweep apart, yet 50 Hz is what the advice asks for. An offset too uncertain to write (the bar
+// set so low that any is) is never blamed on the odometry's rate; the refusal gives the score's depth.
+TEST(OdometryRate, FiftyHertzIsNeverBlamedForAnUncertainOffset) {
+  CalibrationCase recording;
+  recording.scenario = "UTM-30LX/normal/turns";
+  recording.fault = "none";
+  recording.seed = 50;
+  core::TimingFitConfig fit;
+  fit.max_uncertainty_share = 1e-6;
+  const CalibrationRun run = runCalibrationCase(recording, testing::TempDir(), false, fit);
+  const core::TimingEstimate& estimate = run.calibration.estimate;
+  ASSERT_TRUE(estimate.told) << estimate.why;
+  EXPECT_NEAR(estimate.odometry_interval, 0.02, 0.001);
+  EXPECT_FALSE(estimate.offset_told);
+  EXPECT_EQ(estimate.cause, core::TimingCause::kNoClearMinimum) << estimate.why;
+  EXPECT_EQ(estimate.why.find("odometry is too coarse"), std::string::npos) << estimate.why;
+  EXPECT_NE(estimate.why.find("below its median"), std::string::npos) << estimate.why;
+  EXPECT_NEAR(estimate.time_offset, 0.0, 0.0005);  // found, just not written
+}
+
 }  // namespace
 }  // namespace lidar_deskew::eval

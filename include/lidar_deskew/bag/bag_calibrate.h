@@ -4,6 +4,8 @@
 #pragma once
 
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "lidar_deskew/core/timing_fit.h"
 #include "lidar_deskew/ros/deskew_params.h"
@@ -16,7 +18,18 @@ struct CalibrateOptions {
   /// fixed_frame, base_frame (the timing parameters are what is estimated; the rest is unused)
   ros_adapter::DeskewParams params;
   core::TimingFitConfig fit;
+  /// Scans the fit gets at most: a longer recording gives whole segments of `segment` [s], those that
+  /// turn most (chooseScans): memory and time stay bounded whatever the recording's length.
+  std::size_t max_scans = 1200;
+  double segment = 10.0;
 };
+
+/// Which of a recording's scans (stamps [ns] in order, the base's turn rate [rad/s] at each) to keep:
+/// all when at most `max_scans`; else whole segments of `segment` [s], best first by their share of
+/// scans turning at `turning_rate` or faster plus their share of changes of turn rate (starting and
+/// stopping), until `max_scans`.
+std::vector<char> chooseScans(const std::vector<core::TimeNs>& stamps, const std::vector<double>& turn_rates,
+                              std::size_t max_scans, double segment, double turning_rate);
 
 struct Calibration {
   std::string scan_topic;
@@ -25,6 +38,12 @@ struct Calibration {
   double stamp_period = 0.0;        ///< [s] from the stamps
   double stamp_period_sigma = 0.0;  ///< [s]
   double sweep = 0.0;               ///< [s] first to last beam under the estimated period
+  std::size_t unusable_stamps = 0;  ///< scans left out: a stamp tf cannot take (0, another clock)
+  std::size_t not_chosen = 0;       ///< scans left out to keep within max_scans (chooseScans)
+  /// Frames other than `frame` that the topic's scans have (a frame_id that changes midway), with
+  /// their scans' counts: those scans are left out
+  std::vector<std::pair<std::string, std::size_t>> other_frames;
+  std::size_t other_frame_scans = 0;
   core::TimingEstimate estimate;
   /// What the bag's tf did (loaded by the live node's rules): time jumps (each cleared the tf read
   /// before it), transforms left out as off the scans' time line (stale, ahead), refused.

@@ -7,6 +7,7 @@
 
 #include <cstddef>
 #include <deque>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -55,6 +56,16 @@ struct TimingFitConfig {
   double max_uncertainty_share = 0.1;
   /// share of resamples that must prefer the chosen beam order (and period) for it to be told
   double min_confidence = 0.9;
+  /// the coarse score's minimum must lie this share of its median below the median
+  /// (TimingEstimate::curve_depth) for the timing to be told; below it the score is too flat
+  double min_curve_depth = 0.05;
+  /// [s] odometry whose samples lie at most this far apart (50 Hz, with jitter) is never blamed for an
+  /// uncertain offset
+  double fine_odometry_interval = 0.03;
+  /// [s] the period, when the user gives it (0: from the message and the stamps)
+  double given_period = 0.0;
+  /// the beam order, when the user gives it (none: both are tried)
+  std::optional<BeamOrder> given_order;
   std::size_t resamples = 200;  ///< bootstrap resamples for the uncertainties
   /// [s] the bootstrap draws blocks of consecutive scans this long (scans of one turn are not
   /// independent: their errors come from the same motion and odometry)
@@ -89,6 +100,9 @@ class TimingFit {
   double shifted() const { return shift_; }
 
   std::size_t scanCount() const { return scans_.size(); }
+  /// Scans left out because the motion does not cover them from the (shifted) stamp to a period after
+  /// it: before the odometry's first sample or after its last.
+  std::size_t leftOut() const { return all_scans_.size() - scans_.size(); }
   const std::vector<ScanMotion>& motions() const { return motions_; }
   const std::vector<std::pair<std::size_t, std::size_t>>& pairs() const { return pairs_; }
   std::size_t turningScans() const;
@@ -109,7 +123,8 @@ class TimingFit {
   /// `needed`, when given, says which scans to place (the others are left empty).
   std::vector<PlacedScan> place(const TimingConfig& timing, std::vector<char>* placed = nullptr,
                                 bool coarse = false, const std::vector<char>* needed = nullptr) const;
-  /// The raw scans (every beam at the stamp) placed in the fixed frame.
+  /// The raw scans (every beam at the stamp) placed in the fixed frame; empty where the motion does not
+  /// cover the stamp.
   std::vector<PlacedScan> placeRaw() const;
   /// pairDistance() of every pair under `timing` [m]; NaN where a scan could not be placed.
   std::vector<double> pairDistances(const TimingConfig& timing) const;
@@ -119,6 +134,8 @@ class TimingFit {
   /// measure (TimingFitConfig::coarse_consistency, tf's straight line between samples) on its pairs
   /// only (TimingFitConfig::coarse_pairs; the others unscored).
   std::vector<double> pairDistances(const TimingConfig& timing, std::vector<char>& scored, bool coarse) const;
+  /// The indices in pairs() of the pairs the coarse search scores, in order.
+  std::vector<std::size_t> coarsePairs() const;
 
  private:
   PlacedScan placeOne(std::size_t i, const TimingConfig& timing, ScanDeskewer& deskewer,
@@ -149,6 +166,8 @@ enum class TimingCause {
   kOdometryTooCoarse,  ///< the odometry's samples lie farther apart than a sweep: the offset is blurred
   kNoClearMinimum,     ///< the score has no clear minimum: the estimate is too uncertain or on the edge
   kWorseThanRaw,       ///< corrected with the best timing, scans agree less than raw ones
+  kTooFlat,            ///< the score barely changes with the offset over the whole range searched
+  kUndecided,          ///< the recording turns enough, yet the beam order or the period is undecided
 };
 /// A short name of the cause, e.g. "turning too uniform".
 std::string toString(TimingCause cause);
@@ -166,17 +185,22 @@ struct TimingEstimate {
   double offset_sigma = 0.0;  ///< [s] one standard deviation (block bootstrap over scans)
   double search_range = 0.0;  ///< [s] the offset was searched over +-this round the stamp
   bool on_edge = false;       ///< the best offset lay on the search window's edge (no estimate)
+  /// How far the coarse score's minimum over the whole range searched lies below its median, as a share
+  /// of the median (the chosen order and period, first search): 0 = flat, the offset cannot be told
+  double curve_depth = 0.0;
   double order_confidence = 0.0;   ///< share of resamples that prefer the estimated beam order
   double period_confidence = 1.0;  ///< ... the chosen period, where there were two candidates
   double period = 0.0;             ///< [s] the revolution period used
   double period_sigma = 0.0;       ///< [s] when estimated; 0 when the message's was kept
   bool period_estimated = false;   ///< the message's period was 0 or disagreed with the data
+  bool period_given = false;       ///< the period was the user's (TimingFitConfig::given_period)
   double message_period = 0.0;     ///< [s] the message's own (time_increment, else scan_time); 0 = none
   double sweep = 0.0;              ///< [s] first to last beam under `period` (when told)
   bool changed = false;            ///< differs from the message's own timing
   std::size_t scans = 0, pairs = 0, turning_scans = 0, turning_pairs = 0;
   std::size_t changing_pairs = 0;  ///< pairs whose scans' turn rates differ by turning_rate or more
   std::size_t block_scans = 0;     ///< scans per bootstrap block
+  std::size_t left_out = 0;        ///< scans the motion does not cover (TimingFit::leftOut())
   double fastest_turn = 0.0;       ///< [rad/s]
   double turning_rate = 0.0;       ///< [rad/s] TimingFitConfig::turning_rate, as used
   double odometry_interval = 0.0;  ///< [s] TimingFit::odometryInterval()

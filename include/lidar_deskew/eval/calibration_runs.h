@@ -52,10 +52,11 @@ struct CalibrationRun {
   double raw_mm = 0.0;
 };
 
-/// Simulates the case into `directory` (bag and truth), calibrates it and, with `score`, scores the
-/// corrections against the truth. Throws std::runtime_error on failure.
+/// Simulates the case into `directory` (bag and truth), calibrates it (under `fit`) and, with `score`,
+/// scores the corrections against the truth. Throws std::runtime_error on failure.
 CalibrationRun runCalibrationCase(const CalibrationCase& recording, const std::string& directory,
-                                  bool score = true);
+                                  bool score = true,
+                                  const core::TimingFitConfig& fit = core::TimingFitConfig());
 
 /// One markdown table row of a run (see calibrationTableHeader()).
 std::string calibrationTableRow(const CalibrationRun& run);

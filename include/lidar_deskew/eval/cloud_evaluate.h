@@ -14,7 +14,8 @@ namespace lidar_deskew::eval {
 struct CloudEvaluation {
   std::string scenario;
   std::string convention;
-  std::size_t clouds = 0;
+  std::size_t clouds = 0;    ///< scored
+  std::size_t left_out = 0;  ///< clouds tf does not cover (the recording's edges): not scored
   double range_sigma_mm = 0.0;
   /// Distance of every return to the true surfaces [mm], placed with the sensor's true pose at the
   /// reference time (the first return's time).
@@ -30,7 +31,7 @@ struct CloudEvaluation {
 
 /// Reads every /tf and /tf_static of the bag into one tf2 buffer, then scores every cloud on
 /// params' topic-independent settings (time field found alone unless params say otherwise). Throws
-/// std::runtime_error for unreadable bags or truth, and when tf does not cover a cloud.
+/// std::runtime_error for unreadable bags or truth; a cloud tf does not cover is left out and counted.
 CloudEvaluation evaluateCloudBag(const std::string& bag_path, const std::string& truth_path,
                                  const std::string& cloud_topic, const ros_adapter::DeskewParams& params);
 

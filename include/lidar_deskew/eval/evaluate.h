@@ -30,7 +30,8 @@ struct EvaluateOptions {
 
 struct Evaluation {
   std::string scenario;
-  std::size_t scans = 0;
+  std::size_t scans = 0;     ///< scored
+  std::size_t left_out = 0;  ///< scans tf does not cover (the recording's edges): not scored
   double range_sigma_mm = 0.0;
   /// Distance of every point to the true walls [mm].
   ErrorStats raw;    ///< raw beams drawn in the laser frame at the scan stamp
@@ -50,8 +51,9 @@ struct Evaluation {
   double noise_only_rms = 0.0;
 };
 
-/// Reads every /tf and /tf_static of the bag into one tf2 buffer, then scores every scan. Throws
-/// std::runtime_error for unreadable bags or truth, and when tf does not cover a scan.
+/// Reads every /tf and /tf_static of the bag into one tf2 buffer, then scores every scan tf covers (the
+/// others are left out and counted). Throws std::runtime_error for unreadable bags or truth, and when
+/// tf covers no scan.
 Evaluation evaluateBag(const std::string& bag_path, const std::string& truth_path,
                        const EvaluateOptions& options);
 
