@@ -112,5 +112,23 @@ edit frame_change "$work/turns.bag" "$work/frame_change.bag"
 expect frame_change 0 "$work/frame_change.bag" --scan-topic /scan --output "$work/frame_change.yaml"
 grep -q "frame_id changes midway: [0-9]* scans are in another frame than laser (laser_renamed: " \
   "$work/frame_change.out" || fail "frame_change: the change of frame is not named"
+# The shape check (scans a short time apart whose turn differs, aligned by a free rigid scan match):
+# an RPLIDAR robot as the TurtleBot4's (ranges against the spin, stamped 131.6 ms after the first beam,
+# 20 ms odometry): the timing written brings shapes well below raw (the truth-corrected scans: about
+# 0.3), the message's leaves them worse than raw.
+"$simulate" --driver rplidar --stamp-error 0.1316 --duration 8 --noise --bag "$work/rplidar.bag" --truth "$work/rplidar.truth" >/dev/null
+expect rplidar 0 "$work/rplidar.bag" --output "$work/rplidar.yaml"
+grep -q '^beam_order: reversed$' "$work/rplidar.yaml" || fail "rplidar: beam_order reversed not written"
+ratio() { sed -n "s/^    $1: \([0-9.]*\) (quartiles.*/\1/p" "$2"; }
+awk -v r="$(ratio 'the estimated timing' "$work/rplidar.out")" 'BEGIN { exit !(r != "" && r <= 0.5) }' ||
+  fail "rplidar: shapes under the estimate not at most 0.5x raw"
+awk -v r="$(ratio "the message's timing" "$work/rplidar.out")" 'BEGIN { exit !(r != "" && r > 1.0) }' ||
+  fail "rplidar: shapes under the message's timing not worse than raw"
+# Odometry that reports 0.4x the true rotation: the rotation check names it, with the figure, in what is
+# not told.
+"$simulate" --scenario LDS-01/normal/turns --noise --odom-yaw-scale 0.4 --bag "$work/yaw.bag" --truth "$work/yaw.truth" >/dev/null
+expect yaw 4 "$work/yaw.bag" --output "$work/yaw.yaml"
+grep -q "not told (.*tf's rotation does not fit the scans: scan matching sees 2\.[3-7][0-9]x tf's rotation" "$work/yaw.out" ||
+  fail "yaw: the rotation's misfit is not named in what is not told"
 [ "$status" = 0 ] && echo "$cases passed, 0 failed"
 exit "$status"

@@ -13,6 +13,7 @@
 
 #include "lidar_deskew/bag/bag_deskew.h"
 #include "lidar_deskew/eval/recorded_tf.h"
+#include "lidar_deskew/eval/shape_consistency.h"
 #include "lidar_deskew/ros/bag_file.h"
 #include "lidar_deskew/ros/conversions.h"
 
@@ -96,6 +97,56 @@ std::vector<char> chooseScans(const std::vector<core::TimeNs>& stamps, const std
   }
   return keep;
 }
+
+namespace {
+
+/// The shape check of the estimate (Calibration::shapes_*): a timing that makes shapes worse than raw
+/// is not told, with the figure; the rotation's verdict is kept for the user. Never throws: a check
+/// that fails is said in `shape_error`.
+void checkShapes(Calibration& calibration, std::vector<core::PlanarScan> scans, const mrpt::poses::CPose3D& mount,
+                 const core::MotionSource& motion) {
+  core::TimingEstimate& estimate = calibration.estimate;
+  const core::ShapeConfig config;
+  try {
+    std::stable_sort(scans.begin(), scans.end(),
+                     [](const core::PlanarScan& a, const core::PlanarScan& b) { return a.stamp < b.stamp; });
+    const core::ShapeCheck check(std::move(scans), mount, motion, config);
+    calibration.shapes_message = check.shapes(core::TimingConfig());
+    const core::TimingConfig& judged = estimate.told ? estimate.timing : core::TimingConfig();
+    if (estimate.told)
+      calibration.shapes_estimate = check.shapes(judged);
+    calibration.rotation = check.rotation(judged);
+    calibration.shape_warnings = core::shapeWarnings(
+        estimate.told ? calibration.shapes_estimate : calibration.shapes_message, calibration.rotation, config);
+    calibration.shapes_checked = true;
+  } catch (const std::exception& error) {
+    calibration.shape_error = error.what();
+    return;
+  }
+  const core::ShapeRatio& shapes = calibration.shapes_estimate;
+  if (!estimate.told || shapes.pairs < config.min_pairs || !(shapes.ratio > config.max_ratio)) {
+    // What was not told may be for tf's motion not fitting the scans: the refusal names it too.
+    if (!estimate.offset_told) {
+      for (const std::string& warning : calibration.shape_warnings)
+        estimate.why += "; " + warning;
+    }
+    return;
+  }
+  std::ostringstream why;
+  why << "corrected with the best timing found, scans a short time apart whose turn differs align worse "
+      << "than raw ones (a free rigid scan match, which odometry between the scans does not enter): "
+      << number(shapes.ratio, 2) << "x raw (quartiles " << number(shapes.ratio_low, 2) << "-"
+      << number(shapes.ratio_high, 2) << ", " << shapes.pairs << " pairs)";
+  for (const std::string& warning : calibration.shape_warnings)
+    why << "; " << warning;
+  why << ": the odometry or the laser's mount does not fit the scans; nothing to write";
+  estimate.told = false;
+  estimate.offset_told = false;
+  estimate.cause = core::TimingCause::kWorseThanRaw;
+  estimate.why = why.str();
+}
+
+}  // namespace
 
 Calibration calibrateBag(const CalibrateOptions& options) {
   rosbag::Bag bag = ros_adapter::openBagForReading(options.input);
@@ -214,11 +265,13 @@ Calibration calibrateBag(const CalibrateOptions& options) {
   const auto mount = tf->mount(calibration.frame, error);
   if (!mount)
     throw std::runtime_error(options.input + ": no laser mount: " + error);
+  std::vector<core::PlanarScan> shape_scans = scans;
   core::TimingFit fit(std::move(scans), *mount, tf->motion(), 0.0, options.fit);
   calibration.stamp_period = fit.nominalPeriod();
   calibration.stamp_period_sigma = fit.nominalPeriodSigma();
   calibration.estimate = core::estimateTiming(fit, options.fit);
   calibration.sweep = calibration.estimate.sweep;
+  checkShapes(calibration, std::move(shape_scans), *mount, tf->motion());
   return calibration;
 }
 
@@ -299,6 +352,19 @@ std::string describe(const Calibration& calibration) {
        << "    raw (every beam at the stamp): " << consistency(estimate.raw) << "\n"
        << "    corrected, the message's timing: " << consistency(estimate.before) << "\n"
        << "    corrected, the estimated timing: " << consistency(estimate.after) << "\n";
+  if (calibration.shapes_checked) {
+    text << "  shapes (scans up to 1.5 s apart whose turn differs, aligned by a free rigid scan match; "
+         << "corrected / raw):\n"
+         << "    the message's timing: " << eval::formatShapes(calibration.shapes_message) << "\n";
+    if (calibration.shapes_estimate.pairs > 0)
+      text << "    the estimated timing: " << eval::formatShapes(calibration.shapes_estimate) << "\n";
+    text << "    rotation between consecutive scans, scan matching / tf: "
+         << eval::formatRotation(calibration.rotation) << "\n";
+    for (const std::string& warning : calibration.shape_warnings)
+      text << "  warning: " << warning << "\n";
+  } else {
+    text << "  shapes: not checked (" << calibration.shape_error << ")\n";
+  }
   if (!estimate.offset_told)
     text << (estimate.changed
                  ? "  the message's beam order or period is wrong: use the parameters below (the offset "

@@ -185,6 +185,11 @@ Candidate search(const TimingFit& fit, const TimingConfig& timing, double period
     }
     Curve inner = evaluate(fit, timing, inner_grid, true, cap);
     Curve all = merge(inner, evaluate(fit, timing, outer_grid, true, cap), cap);
+    if (4 * all.scored_pairs < inner.scored_pairs) {
+      // A recording not much longer than the whole range: few pairs are placed at every offset of it,
+      // and a minimum over those is no comparison. The window round the stamp alone, as before.
+      return search(fit, timing, period, center, range, range, config);
+    }
     candidate.depth = depthOf(all.mean);
     std::size_t k = 0, k_inner = 0;
     best = minimumOf(all.offsets, all.mean, &k).first;

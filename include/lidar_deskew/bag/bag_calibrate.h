@@ -7,6 +7,7 @@
 #include <utility>
 #include <vector>
 
+#include "lidar_deskew/core/scan_match.h"
 #include "lidar_deskew/core/timing_fit.h"
 #include "lidar_deskew/ros/deskew_params.h"
 
@@ -48,6 +49,17 @@ struct Calibration {
   /// What the bag's tf did (loaded by the live node's rules): time jumps (each cleared the tf read
   /// before it), transforms left out as off the scans' time line (stale, ahead), refused.
   std::size_t tf_time_jumps = 0, tf_stale = 0, tf_ahead = 0, tf_refused = 0;
+  /// The shape check (core/scan_match.h), which odometry between scans cannot spoil: scans a short
+  /// time apart whose turn differs, aligned by a free rigid scan match, corrected / raw under the
+  /// message's timing and under the estimate (when told), and tf's rotation between consecutive scans
+  /// against the scans' under the estimate (else the message's). An estimate that makes shapes worse
+  /// than raw is not told (TimingCause::kWorseThanRaw), whatever the overlap score says.
+  bool shapes_checked = false;       ///< false: the check failed (`shape_error`)
+  std::string shape_error;
+  core::ShapeRatio shapes_message;   ///< under the message's timing
+  core::ShapeRatio shapes_estimate;  ///< under the estimate (when told)
+  core::RotationAgreement rotation;
+  std::vector<std::string> shape_warnings;  ///< core::shapeWarnings under the timing written (or kept)
 };
 
 /// Reads the scans of the topic and the bag's tf (the live node's rules), and estimates. Throws
