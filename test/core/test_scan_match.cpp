@@ -8,6 +8,7 @@
 
 #include "lidar_deskew/core/scan_match.h"
 #include "lidar_deskew/sim/sim.h"
+#include "../support/turning_drive.h"
 
 namespace lidar_deskew::core {
 namespace {
@@ -54,31 +55,12 @@ TEST(ScanMatch, RecoversARigidMoveWithoutAGuess) {
   }
 }
 
-/// A drive whose turn rate changes every second or two, in the hall, and a LIDAR on it.
-struct Drive {
-  sim::LidarModel lidar = sim::LidarModel::ild26tri();
-  sim::Pose2 mount{0.1, 0.0, 0.0};
-  sim::PiecewiseTrajectory trajectory{sim::Pose2{-4.0, 0.0, 0.0},
-                                      {{1.0, 0.0, 0.0, 0.0},
-                                       {1.5, 0.0, 0.0, 1.5},
-                                       {1.0, 0.5, 0.0, 0.0},
-                                       {1.5, 0.3, 0.0, -2.0},
-                                       {1.0, 0.0, 0.0, 0.0},
-                                       {1.5, 0.0, 0.0, 1.0},
-                                       {1.5, 0.5, 0.0, 0.5},
-                                       {1.0, 0.0, 0.0, -1.5},
-                                       {1.0, 0.0, 0.0, 0.0}}};
-  double duration = 10.0;
-};
+using Drive = test_support::TurningDrive;
 
 /// The drive's scans with range noise (`reversed`: beams measured against the index order the
 /// message claims; stamps `stamp_delay` [s] after the first beam) and odometry at 50 Hz whose yaw
 /// increments are the true ones x `yaw_scale`.
-struct Recording {
-  std::vector<PlanarScan> scans;
-  PoseSamples motion;
-  mrpt::poses::CPose3D mount;
-};
+using Recording = test_support::TurningRecording;
 Recording record(const Drive& drive, bool reversed, double yaw_scale, double stamp_delay = 0.0) {
   Recording recording;
   const sim::World world = sim::World::hall();

@@ -8,6 +8,7 @@
 #include "lidar_deskew/core/consistency.h"
 #include "lidar_deskew/core/timing_fit.h"
 #include "lidar_deskew/sim/sim.h"
+#include "../support/turning_drive.h"
 
 namespace lidar_deskew::core {
 namespace {
@@ -53,29 +54,10 @@ TEST(Consistency, PointToLineDistanceIsThePerpendicularToTheContour) {
   EXPECT_NEAR(summary.median, 0.02, 1e-15);
 }
 
-/// A drive whose turn rate changes every second or two, in the hall, and a LIDAR on it.
-struct Drive {
-  sim::LidarModel lidar = sim::LidarModel::ild26tri();
-  sim::Pose2 mount{0.1, 0.0, 0.0};
-  sim::PiecewiseTrajectory trajectory{sim::Pose2{-4.0, 0.0, 0.0},
-                                      {{1.0, 0.0, 0.0, 0.0},
-                                       {1.5, 0.0, 0.0, 1.5},
-                                       {1.0, 0.5, 0.0, 0.0},
-                                       {1.5, 0.3, 0.0, -2.0},
-                                       {1.0, 0.0, 0.0, 0.0},
-                                       {1.5, 0.0, 0.0, 1.0},
-                                       {1.5, 0.5, 0.0, 0.5},
-                                       {1.0, 0.0, 0.0, -1.5},
-                                       {1.0, 0.0, 0.0, 0.0}}};
-  double duration = 10.0;
-};
+using Drive = test_support::TurningDrive;
 
 /// The drive's scans, stamped per the faults, and its motion sampled at 50 Hz (perfect odometry).
-struct Recording {
-  std::vector<PlanarScan> scans;
-  PoseSamples motion;
-  mrpt::poses::CPose3D mount;
-};
+using Recording = test_support::TurningRecording;
 
 /// `stamp_error` [s]: stamp = the earliest beam + it; `reversed`: the beams' time order is the
 /// reverse of their index order; `time_increment_factor`: the message's time_increment x it (scan_time
