@@ -33,6 +33,25 @@ std::string consistency(const core::ConsistencySummary& summary) {
          number(summary.median * 1e3, 2) + ", " + std::to_string(summary.pairs) + " pairs)";
 }
 
+/// The shape check's lines of describe() (Calibration::shapes_*), printed whatever was told.
+std::string shapesText(const Calibration& calibration) {
+  std::ostringstream text;
+  if (calibration.shapes_checked) {
+    text << "  shapes (scans up to 1.5 s apart whose turn differs, aligned by a free rigid scan match; "
+         << "corrected / raw):\n"
+         << "    the message's timing: " << eval::formatShapes(calibration.shapes_message) << "\n";
+    if (calibration.shapes_estimate.pairs > 0)
+      text << "    the estimated timing: " << eval::formatShapes(calibration.shapes_estimate) << "\n";
+    text << "    rotation between consecutive scans, scan matching / tf: "
+         << eval::formatRotation(calibration.rotation) << "\n";
+    for (const std::string& warning : calibration.shape_warnings)
+      text << "  warning: " << warning << "\n";
+  } else {
+    text << "  shapes: not checked (" << calibration.shape_error << ")\n";
+  }
+  return text.str();
+}
+
 }  // namespace
 
 namespace {
@@ -311,7 +330,8 @@ std::string describe(const Calibration& calibration) {
        << estimate.changing_pairs << " whose turn rates differ; odometry every "
        << number(estimate.odometry_interval * 1e3, 0) << " ms\n";
   if (!estimate.told) {
-    text << "  nothing told (" << core::toString(estimate.cause) << "): " << estimate.why << "\n";
+    text << shapesText(calibration) << "  nothing told (" << core::toString(estimate.cause)
+         << "): " << estimate.why << "\n";
     return text.str();
   }
   const core::TimingConfig& timing = estimate.timing;
@@ -352,19 +372,7 @@ std::string describe(const Calibration& calibration) {
        << "    raw (every beam at the stamp): " << consistency(estimate.raw) << "\n"
        << "    corrected, the message's timing: " << consistency(estimate.before) << "\n"
        << "    corrected, the estimated timing: " << consistency(estimate.after) << "\n";
-  if (calibration.shapes_checked) {
-    text << "  shapes (scans up to 1.5 s apart whose turn differs, aligned by a free rigid scan match; "
-         << "corrected / raw):\n"
-         << "    the message's timing: " << eval::formatShapes(calibration.shapes_message) << "\n";
-    if (calibration.shapes_estimate.pairs > 0)
-      text << "    the estimated timing: " << eval::formatShapes(calibration.shapes_estimate) << "\n";
-    text << "    rotation between consecutive scans, scan matching / tf: "
-         << eval::formatRotation(calibration.rotation) << "\n";
-    for (const std::string& warning : calibration.shape_warnings)
-      text << "  warning: " << warning << "\n";
-  } else {
-    text << "  shapes: not checked (" << calibration.shape_error << ")\n";
-  }
+  text << shapesText(calibration);
   if (!estimate.offset_told)
     text << (estimate.changed
                  ? "  the message's beam order or period is wrong: use the parameters below (the offset "

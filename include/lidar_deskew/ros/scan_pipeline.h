@@ -176,8 +176,8 @@ class SweepPipeline {
   /// reset seen before any tf of the new time line, or alone), unless tf's stamps went back just before.
   void observeClock(double now);
   /// Fails every waiting scan (dropped without a mount, else per on_tf_failure): their tf will not come.
-  /// An empty `reason`: each with the cause TfFeed finds. With `new_time_line` [ns] (tf jumped back to
-  /// it), the scans whose latest time lies within 1 s of it keep waiting: their tf is the new one.
+  /// With `new_time_line` [ns] (tf jumped back to it), the scans whose latest time lies within 1 s of it
+  /// keep waiting: their tf is the new one.
   void failWaiting(const std::string& reason, core::TimeNs new_time_line = 0);
   /// Waiting::kRecording's serveReady: each scan decided alone once tf's newest passes its end.
   void serveRecorded(double now);
