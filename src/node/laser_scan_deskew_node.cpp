@@ -374,6 +374,18 @@ void DeskewNode<Processor>::tfCallback(const tf2_msgs::TFMessage::ConstPtr& mess
 }
 
 template <class Processor>
+void DeskewNode<Processor>::showStatus(const std::optional<bool>& known, bool& reported, const char* name,
+                                      Produce produce) {
+  if (!known || *known == reported)
+    return;
+  if (*known)
+    diagnostics_->add(name, this, produce);
+  else
+    diagnostics_->removeByName(name);
+  reported = *known;
+}
+
+template <class Processor>
 void DeskewNode<Processor>::timerCallback(const ros::WallTimerEvent& /*event*/) {
   bool diagnostics_due = false;
   std::optional<bool> timing_known;    // whether the timing check has a verdict, when diagnostics are due
@@ -407,21 +419,9 @@ void DeskewNode<Processor>::timerCallback(const ros::WallTimerEvent& /*event*/) 
   // The timing status appears once the robot has turned enough to tell, and goes when the check
   // starts over (the timing parameters changed). Outside mutex_: the Updater holds its own lock while
   // it calls the tasks, which take mutex_. Only this timer adds or removes the task.
-  if (timing_known && *timing_known != timing_reported_) {
-    if (*timing_known)
-      diagnostics_->add("timing", this, &DeskewNode::produceTimingDiagnostics);
-    else
-      diagnostics_->removeByName("timing");
-    timing_reported_ = *timing_known;
-  }
+  showStatus(timing_known, timing_reported_, "timing", &DeskewNode::produceTimingDiagnostics);
   // Likewise the status of tf's rotation against the scans.
-  if (rotation_known && *rotation_known != rotation_reported_) {
-    if (*rotation_known)
-      diagnostics_->add("tf rotation", this, &DeskewNode::produceRotationDiagnostics);
-    else
-      diagnostics_->removeByName("tf rotation");
-    rotation_reported_ = *rotation_known;
-  }
+  showStatus(rotation_known, rotation_reported_, "tf rotation", &DeskewNode::produceRotationDiagnostics);
   // On the wall clock: the Updater's own schedule is in ROS time, which stands still with a paused
   // bag and goes back when a bag loops (diagnostics then fell silent).
   if (diagnostics_due)

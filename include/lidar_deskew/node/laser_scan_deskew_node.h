@@ -12,6 +12,7 @@
 
 #include <map>
 #include <memory>
+#include <optional>
 #include <mutex>
 #include <string>
 #include <vector>
@@ -83,6 +84,10 @@ class DeskewNode {
   void produceDiagnostics(diagnostic_updater::DiagnosticStatusWrapper& status);
   void produceTimingDiagnostics(diagnostic_updater::DiagnosticStatusWrapper& status);
   void produceRotationDiagnostics(diagnostic_updater::DiagnosticStatusWrapper& status);
+  using Produce = void (DeskewNode::*)(diagnostic_updater::DiagnosticStatusWrapper&);
+  /// Puts the status `name` on /diagnostics (produced by `produce`) when `known` turns true, takes it off
+  /// when it turns false; `reported` says whether it is on. The diagnostics timer's alone, outside mutex_.
+  void showStatus(const std::optional<bool>& known, bool& reported, const char* name, Produce produce);
   /// Whether one more timing check, costing three times the costliest of late, stays within 5 % of the
   /// callbacks' CPU.
   bool timingCheckAffordable() const;
