@@ -1155,7 +1155,7 @@ TimingCheck::Verdict TimingCheck::verdict() const {
     }
   }
   // Raw beats the configured timing, and an alternative beats raw.
-  if (raw_beats_configured) {
+  if (raw_beats_configured && verdict.shape_best < verdict.shape_raw) {
     verdict.state = State::kBetter;
     verdict.best_name = verdict.shape_best_name;
     std::snprintf(text, sizeof text,
