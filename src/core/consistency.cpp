@@ -114,18 +114,22 @@ PlacedScan placeCorrected(const DeskewedScan& corrected, const mrpt::poses::CPos
                     bearing_step * static_cast<double>(stride), std::move(points));
 }
 
-PlacedScan placeRaw(const PlanarScan& scan, const mrpt::poses::CPose3D& laser, TimeNs time) {
+PlacedScan placeRaw(const PlanarScan& scan, const mrpt::poses::CPose3D& laser, TimeNs time,
+                    std::size_t stride) {
+  stride = std::max<std::size_t>(1, stride);
   const ReturnTest is_return(scan);
   std::vector<Eigen::Vector2d> points;
+  std::size_t returns = 0;
   for (std::size_t i = 0; i < scan.ranges.size(); ++i) {
-    if (!is_return(scan.ranges[i]))
+    if (!is_return(scan.ranges[i]) || returns++ % stride != 0)
       continue;
     const double angle = scan.angle_min + static_cast<double>(i) * scan.angle_increment;
     double x, y, z;
     laser.composePoint(scan.ranges[i] * std::cos(angle), scan.ranges[i] * std::sin(angle), 0.0, x, y, z);
     points.emplace_back(x, y);
   }
-  return PlacedScan(time, {laser.x(), laser.y()}, std::abs(static_cast<double>(scan.angle_increment)),
+  return PlacedScan(time, {laser.x(), laser.y()},
+                    std::abs(static_cast<double>(scan.angle_increment)) * static_cast<double>(stride),
                     std::move(points));
 }
 

@@ -867,6 +867,17 @@ void TimingCheck::reset(const TimingConfig& configured) {
   scans_ = 0;
   timings_.clear();
   pending_.clear();
+  offered_.clear();
+  shape_pairs_.clear();
+}
+
+void TimingCheck::offer(const PlanarScan& scan) {
+  const TimeNs keep = secondsToNs(config_.shape.max_interval + 1.0);  // + 1 s: a checked scan may wait
+  while (!offered_.empty() &&
+         (offered_.size() >= config_.offered || scan.stamp - offered_.front().stamp > keep ||
+          offered_.front().stamp > scan.stamp))  // time went back: start over
+    offered_.pop_front();
+  offered_.push_back(scan);
 }
 
 bool TimingCheck::add(const PlanarScan& scan, const mrpt::poses::CPose3D& mount, const MotionSource& motion) {
@@ -890,6 +901,8 @@ bool TimingCheck::tryPending(const MotionSource& motion) {
   Entry entry;
   entry.time = scan.stamp;
   TimeNs begin = std::numeric_limits<TimeNs>::min();  // [ns] the configured sweep's first beam
+  TimeNs sweep_middle = 0;                            // [ns] ... and its middle
+  std::size_t stride = 1;
   try {
     const BeamTiming beams = resolveTiming(scan, configured_);
     begin = beams.earliestBeamTime();
@@ -923,10 +936,10 @@ bool TimingCheck::tryPending(const MotionSource& motion) {
       (void)motion.basePose(resolved.back().earliestBeamTime());
       (void)motion.basePose(resolved.back().latestBeamTime());
     }
-    entry.turn_rate = std::abs(turnRate(motion, begin, end));
+    entry.turn_rate = turnRate(motion, begin, end);
     // Every return corrected, every k-th placed: at most config_.beams a scan.
-    const std::size_t stride = std::max<std::size_t>(
-        1, (scan.ranges.size() + config_.beams - 1) / std::max<std::size_t>(1, config_.beams));
+    stride = strideFor(scan);
+    sweep_middle = begin + (end - begin) / 2;
     for (const BeamTiming& beams_of_timing : resolved) {
       deskewer_.deskew(scan, beams_of_timing, mount, motion, corrected_);
       entry.placed.push_back(placeCorrected(corrected_, motion.basePose(corrected_.reference_time) + mount,
@@ -946,9 +959,10 @@ bool TimingCheck::tryPending(const MotionSource& motion) {
     pending_.pop_front();
     return false;
   }
-  pending_.pop_front();
   timings_ = std::move(timings);
   ++scans_;
+  addShapePair(scan, mount, entry, sweep_middle, stride, motion);
+  pending_.pop_front();  // (scan and mount refer to it)
   // Partners: spread over the history, the newest first.
   const TimeNs horizon = entry.time - secondsToNs(config_.history);
   history_.erase(
@@ -958,7 +972,7 @@ bool TimingCheck::tryPending(const MotionSource& motion) {
   const std::size_t count = std::min(config_.partners, history_.size());
   for (std::size_t k = 0; k < count; ++k) {
     const Entry& partner = history_[history_.size() - 1 - spreadIndex(k, count, history_.size())];
-    if (std::max(partner.turn_rate, entry.turn_rate) < config_.turning_rate)
+    if (std::max(std::abs(partner.turn_rate), std::abs(entry.turn_rate)) < config_.turning_rate)
       continue;
     // The pair counts when it overlaps under any of the timings (a wrong one distorts turns by metres).
     std::vector<double> distances(timings_.size());
@@ -983,35 +997,188 @@ bool TimingCheck::tryPending(const MotionSource& motion) {
   return true;
 }
 
+void TimingCheck::addShapePair(const PlanarScan& scan, const mrpt::poses::CPose3D& mount, const Entry& entry,
+                               TimeNs middle, std::size_t stride, const MotionSource& motion) {
+  const ShapeConfig& shape = config_.shape;
+  // The nearest earlier scan whose turn differs: tf's turn rates only choose the pair (and tf's relative
+  // pose seeds the raw match); what is measured is the free match's aligned distance.
+  const PlanarScan* partner = nullptr;
+  TimeNs partner_middle = 0;
+  for (auto it = offered_.rbegin(); it != offered_.rend() && !partner; ++it) {
+    if (it->stamp >= scan.stamp)
+      continue;
+    if (scan.stamp - it->stamp > secondsToNs(shape.max_interval))
+      break;
+    try {
+      const BeamTiming beams = resolveTiming(*it, configured_);
+      const TimeNs begin = beams.earliestBeamTime();
+      const TimeNs end = std::max(beams.latestBeamTime(), begin + 1);
+      if (std::abs(turnRate(motion, begin, end) - entry.turn_rate) >= shape.min_turn_difference) {
+        partner = &*it;
+        partner_middle = begin + (end - begin) / 2;
+      }
+    } catch (const MotionUnavailable&) {
+      return;  // tf no longer reaches back this far
+    } catch (const InvalidInput&) {
+    }
+  }
+  if (!partner)
+    return;
+  // Both scans in the fixed frame where tf puts them: raw (every beam at its stamp, drawn from the laser
+  // at the sweep's middle) and under every timing, as many returns as the check keeps.
+  const std::size_t partner_stride = strideFor(*partner);
+  std::vector<PlacedScan> placed;  // the partner's, per timing
+  PlacedScan partner_raw, raw;
+  mrpt::poses::CPose3D partner_laser, laser;
+  try {
+    for (const auto& named : timings_) {
+      deskewer_.deskew(*partner, resolveTiming(*partner, named.second), mount, motion, corrected_);
+      placed.push_back(placeCorrected(corrected_, motion.basePose(corrected_.reference_time) + mount,
+                                      std::abs(static_cast<double>(partner->angle_increment)),
+                                      partner_stride));
+    }
+    partner_laser = motion.basePose(partner_middle) + mount;
+    laser = motion.basePose(middle) + mount;
+    partner_raw = placeRaw(*partner, partner_laser, partner_middle, partner_stride);
+    raw = placeRaw(scan, laser, middle, stride);
+  } catch (const MotionUnavailable&) {
+    return;
+  } catch (const InvalidInput&) {
+    return;
+  }
+  const auto aligned = [&](const ScanMatch& match) {
+    return match.valid && match.overlap >= shape.min_overlap && std::isfinite(match.distance);
+  };
+  ScanMatch raw_match = matchScans(partner_raw, raw.points(), Pose2d(), shape.match);
+  if (!aligned(raw_match)) {
+    // tf's rotation between the two may be what is wrong (by more than the coarse search): seed with the
+    // laser not turning between them instead, about its own position.
+    const double turn = partner_laser.yaw() - laser.yaw();
+    const Pose2d rotate{0.0, 0.0, turn};
+    const Eigen::Vector2d moved = rotate.apply({laser.x(), laser.y()});
+    raw_match = matchScans(partner_raw, raw.points(),
+                           Pose2d{laser.x() - moved.x(), laser.y() - moved.y(), turn}, shape.match);
+    if (!aligned(raw_match))
+      return;
+  }
+  // Each timing's scans from where the raw ones aligned: they differ by the distortion only.
+  ScanMatchConfig refine = shape.match;
+  refine.rotation_search = config_.refine_search;
+  refine.iterations = config_.refine_iterations;
+  std::vector<double> distances{raw_match.distance};
+  for (std::size_t t = 0; t < timings_.size(); ++t) {
+    const ScanMatch match = matchScans(placed[t], entry.placed[t].points(), raw_match.pose, refine);
+    // A timing under which the two do not even align counts the cap.
+    distances.push_back(aligned(match) ? match.distance : shape.match.score.cap);
+  }
+  shape_pairs_.push_back(std::move(distances));
+  if (shape_pairs_.size() > config_.shape_history)
+    shape_pairs_.pop_front();
+}
+
+std::size_t TimingCheck::strideFor(const PlanarScan& scan) const {
+  return std::max<std::size_t>(
+      1, (scan.ranges.size() + config_.beams - 1) / std::max<std::size_t>(1, config_.beams));
+}
+
 TimingCheck::Verdict TimingCheck::verdict() const {
   Verdict verdict;
   verdict.pairs = pairs_;
-  if (pairs_ < config_.min_pairs || timings_.empty())
+  if (timings_.empty())
     return verdict;
-  std::size_t best = 1;
-  for (std::size_t t = 2; t < sums_.size(); ++t) {
-    if (sums_[t] < sums_[best])
-      best = t;
+  char text[400];
+  // The shape score: per column (raw, then per timing) the median aligned distance over the pairs kept.
+  verdict.shape_pairs = shape_pairs_.size();
+  bool raw_beats_configured = false;
+  if (!shape_pairs_.empty()) {
+    const std::size_t columns = std::min(shape_pairs_.front().size(), timings_.size() + 1);
+    std::vector<double> medians(columns);
+    std::vector<double> column;
+    for (std::size_t c = 0; c < columns; ++c) {
+      column.clear();
+      for (const std::vector<double>& pair : shape_pairs_)
+        column.push_back(pair[c]);
+      std::nth_element(column.begin(), column.begin() + column.size() / 2, column.end());
+      medians[c] = column[column.size() / 2];
+    }
+    std::size_t best = 2;
+    for (std::size_t c = 3; c < columns; ++c) {
+      if (medians[c] < medians[best])
+        best = c;
+    }
+    verdict.shape_raw = medians[0];
+    verdict.shape_configured = medians[1];
+    verdict.shape_best = medians[best];
+    verdict.shape_best_name = timings_[best - 1].first;
+    const std::size_t raw_wins = static_cast<std::size_t>(
+        std::count_if(shape_pairs_.begin(), shape_pairs_.end(),
+                      [](const std::vector<double>& pair) { return pair[0] < pair[1]; }));
+    raw_beats_configured = verdict.shape_pairs >= config_.min_shape_pairs &&
+                           verdict.shape_raw < config_.margin * verdict.shape_configured &&
+                           raw_wins >= config_.min_win_share * static_cast<double>(verdict.shape_pairs);
   }
-  verdict.configured = sums_[0] / pairs_;
-  verdict.best = sums_[best] / pairs_;
-  verdict.best_name = timings_[best].first;
-  char text[320];
-  if (verdict.best < config_.margin * verdict.configured &&
-      wins_[best] >= config_.min_win_share * static_cast<double>(pairs_)) {
+  const double shape_ratio = verdict.shape_configured / verdict.shape_raw;
+  // No correction aligns markedly better than the configured timing, and at least as well as every
+  // alternative: tf's motion (or a timing the check does not try) is wrong. Odometry between the scans
+  // does not enter, so this holds also where the odometry-placed consistency below sees no overlap.
+  if (raw_beats_configured && verdict.shape_raw <= verdict.shape_best) {
+    verdict.state = State::kWorseThanRaw;
+    std::snprintf(
+        text, sizeof text,
+        "correction makes shapes worse than raw: aligned distance %.2fx raw (%zu pairs while turning; "
+        "best alternative, %s: %.2fx); tf's motion or the timing does not fit the scans. The node "
+        "keeps correcting: check tf's odometry and the timing (deskew_calibrate)",
+        shape_ratio, verdict.shape_pairs, verdict.shape_best_name.c_str(),
+        verdict.shape_best / verdict.shape_raw);
+    verdict.message = text;
+    return verdict;
+  }
+  const bool consistency_known = pairs_ >= config_.min_pairs;
+  if (consistency_known) {
+    std::size_t best = 1;
+    for (std::size_t t = 2; t < sums_.size(); ++t) {
+      if (sums_[t] < sums_[best])
+        best = t;
+    }
+    verdict.configured = sums_[0] / pairs_;
+    verdict.best = sums_[best] / pairs_;
+    verdict.best_name = timings_[best].first;
+    if (verdict.best < config_.margin * verdict.configured &&
+        wins_[best] >= config_.min_win_share * static_cast<double>(pairs_)) {
+      verdict.state = State::kBetter;
+      std::snprintf(text, sizeof text,
+                    "timing fits markedly better with %s: overlapping scans %.1f mm apart against %.1f mm as "
+                    "configured (%zu pairs while turning); check with deskew_calibrate",
+                    verdict.best_name.c_str(), verdict.best * 1e3, verdict.configured * 1e3, pairs_);
+      verdict.message = text;
+      return verdict;
+    }
+  }
+  // Raw beats the configured timing, and an alternative beats raw.
+  if (raw_beats_configured && verdict.shape_best < verdict.shape_raw) {
     verdict.state = State::kBetter;
+    verdict.best_name = verdict.shape_best_name;
     std::snprintf(text, sizeof text,
-                  "timing fits markedly better with %s: overlapping scans %.1f mm apart against %.1f mm as "
-                  "configured (%zu pairs while turning); check with deskew_calibrate",
-                  verdict.best_name.c_str(), verdict.best * 1e3, verdict.configured * 1e3, pairs_);
-  } else {
-    verdict.state = State::kFits;
-    std::snprintf(text, sizeof text,
-                  "timing fits: overlapping scans %.1f mm apart (best alternative, %s: %.1f mm; %zu pairs "
-                  "while turning)",
-                  verdict.configured * 1e3, verdict.best_name.c_str(), verdict.best * 1e3, pairs_);
+                  "timing fits markedly better with %s: scans aligned %.1f mm apart against %.1f mm as "
+                  "configured and %.1f mm raw (%zu pairs while turning); check with deskew_calibrate",
+                  verdict.shape_best_name.c_str(), verdict.shape_best * 1e3, verdict.shape_configured * 1e3,
+                  verdict.shape_raw * 1e3, verdict.shape_pairs);
+    verdict.message = text;
+    return verdict;
   }
+  if (!consistency_known)
+    return verdict;
+  verdict.state = State::kFits;
+  std::snprintf(text, sizeof text,
+                "timing fits: overlapping scans %.1f mm apart (best alternative, %s: %.1f mm; %zu pairs "
+                "while turning)",
+                verdict.configured * 1e3, verdict.best_name.c_str(), verdict.best * 1e3, pairs_);
   verdict.message = text;
+  if (verdict.shape_pairs >= config_.min_shape_pairs) {
+    std::snprintf(text, sizeof text, "; shapes aligned %.2fx raw (%zu pairs)", shape_ratio,
+                  verdict.shape_pairs);
+    verdict.message += text;
+  }
   return verdict;
 }
 

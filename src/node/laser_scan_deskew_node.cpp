@@ -516,7 +516,13 @@ void DeskewNode<Processor>::checkTiming(const typename Processor::Prepared& prep
         ROS_ERROR_THROTTLE(10.0, "%s: rotation check: %s", name_.c_str(), error.what());
       }
     }
-    if (!timing_check_ || !timingCheckAffordable())
+    if (!timing_check_)
+      return;
+    {
+      const CpuSpent spent(check_cpu_);
+      timing_check_->offer(prepared.scan);  // every scan: a copy, a shape partner of a later check
+    }
+    if (!timingCheckAffordable())
       return;
     timeCheck([&] {
       try {
@@ -532,14 +538,20 @@ template <class Processor>
 void DeskewNode<Processor>::produceTimingDiagnostics(diagnostic_updater::DiagnosticStatusWrapper& status) {
   std::lock_guard<std::mutex> lock(mutex_);
   const core::TimingCheck::Verdict verdict = timing_check_->verdict();
+  const bool warn = verdict.state == core::TimingCheck::State::kBetter ||
+                    verdict.state == core::TimingCheck::State::kWorseThanRaw;
   status.summary(
-      verdict.state == core::TimingCheck::State::kBetter ? diagnostic_msgs::DiagnosticStatus::WARN
-                                                         : diagnostic_msgs::DiagnosticStatus::OK,
+      warn ? diagnostic_msgs::DiagnosticStatus::WARN : diagnostic_msgs::DiagnosticStatus::OK,
       verdict.state == core::TimingCheck::State::kUnknown ? "not turned enough to tell" : verdict.message);
   status.add("pairs while turning", verdict.pairs);
   status.add("configured timing [mm]", 1e3 * verdict.configured);
   status.add("best alternative", verdict.best_name);
   status.add("best alternative [mm]", 1e3 * verdict.best);
+  status.add("shape pairs", verdict.shape_pairs);
+  status.add("shapes aligned raw [mm]", 1e3 * verdict.shape_raw);
+  status.add("shapes aligned as configured [mm]", 1e3 * verdict.shape_configured);
+  status.add("shapes best alternative", verdict.shape_best_name);
+  status.add("shapes best alternative [mm]", 1e3 * verdict.shape_best);
   status.add("check CPU share [%]", 100.0 * check_cpu_ / std::max(1e-9, callbacks_cpu_));
 }
 
@@ -592,7 +604,9 @@ void DeskewNode<Processor>::produceDiagnostics(diagnostic_updater::DiagnosticSta
   status.add("latency p99 [ms]", 1e3 * latencyP99Locked());
   if (timing_check_) {
     status.add("timing check: scans", timing_check_->scans());
-    status.add("timing check: pairs while turning", timing_check_->verdict().pairs);
+    const core::TimingCheck::Verdict verdict = timing_check_->verdict();
+    status.add("timing check: pairs while turning", verdict.pairs);
+    status.add("timing check: shape pairs", verdict.shape_pairs);
     status.add("timing check: CPU share [%]", 100.0 * check_cpu_ / std::max(1e-9, callbacks_cpu_));
   }
   counters_at_last_diagnostics_ = counters;

@@ -5,10 +5,10 @@
 #include <cmath>
 #include <random>
 
+#include "../support/turning_drive.h"
 #include "lidar_deskew/core/consistency.h"
 #include "lidar_deskew/core/timing_fit.h"
 #include "lidar_deskew/sim/sim.h"
-#include "../support/turning_drive.h"
 
 namespace lidar_deskew::core {
 namespace {
@@ -203,21 +203,25 @@ TEST(TimingFit, SearchesTheWholeRangeOrSaysTheMinimumIsOnItsEdge) {
 }
 
 /// The live check fed as the node feeds it: each scan once tf covers its last beam under the
-/// configured timing, tf arriving in 20 ms samples, the waiting scan retried as tf comes.
-TimingCheck::Verdict checkLive(const Drive& drive, const Recording& recording,
-                               const TimingConfig& configured) {
+/// configured timing, tf arriving in 20 ms samples, the waiting scan retried as tf comes. tf is the
+/// odometry `odometry` (default: the truth); `offer`: every scan is offered as a shape partner first.
+TimingCheck::Verdict checkLive(const Drive& drive, const Recording& recording, const TimingConfig& configured,
+                               const sim::Trajectory* odometry = nullptr, bool offer = false) {
+  const sim::Trajectory& tf_source = odometry ? *odometry : drive.trajectory;
   TimingCheck check(configured);
   PoseSamples tf;
   double tf_until = -1.0;
   const auto tfUntil = [&](double t) {
     for (; tf_until <= t; tf_until += 0.02) {
-      const sim::Pose2 pose = drive.trajectory.pose(tf_until);
+      const sim::Pose2 pose = tf_source.pose(tf_until);
       tf.add(kEpoch + secondsToNs(tf_until), mrpt::poses::CPose2D(pose.x, pose.y, pose.yaw));
     }
   };
   for (const PlanarScan& scan : recording.scans) {
     const BeamTiming beams = resolveTiming(scan, configured);
     tfUntil(nsToSeconds(beams.latestBeamTime() - kEpoch));  // the node corrects it now
+    if (offer)
+      check.offer(scan);
     check.add(scan, recording.mount, tf);
     for (int k = 0; k < 10 && check.waiting(); ++k) {  // later tf messages
       tfUntil(tf_until + 0.02);
@@ -252,6 +256,48 @@ TEST(TimingCheck, NamesTheBetterTimingOrSaysItFits) {
   const TimingCheck::Verdict none = checkLive(straight, record(straight, 0.0, false, 1.0), TimingConfig());
   EXPECT_EQ(none.state, TimingCheck::State::kUnknown);
   EXPECT_EQ(none.pairs, 0u);
+}
+
+/// The shape score (scans up to 1.5 s apart whose turn differs, aligned by a free match): odometry that
+/// reports 3x the true rotation over-corrects every turn, and raw scans align better than corrected ones
+/// under every timing: "worse than raw", however the odometry-placed consistency reads. Right odometry
+/// and timing: corrected shapes align far better than raw, the timing fits. Odometry reporting 0.4x the
+/// rotation under-corrects: still better than raw, so not "worse than raw" (the rotation monitor
+/// names that fault).
+TEST(TimingCheck, SaysWhenCorrectionMakesShapesWorseThanRaw) {
+  Drive drive;
+  drive.duration = 10.0;
+  const Recording recording = record(drive, 0.0, false, 1.0, false);
+  const auto check = [&](double yaw_scale) {
+    const sim::NoisyOdometry odometry(drive.trajectory, -1.0, drive.duration + 1.0, 0.0, 1, yaw_scale);
+    const TimingCheck::Verdict verdict = checkLive(drive, recording, TimingConfig(), &odometry, true);
+    std::printf(
+        "odometry turning %.1fx: %zu shape pairs, aligned raw %.1f mm, configured %.1f mm, best "
+        "alternative %s %.1f mm; %s\n",
+        yaw_scale, verdict.shape_pairs, verdict.shape_raw * 1e3, verdict.shape_configured * 1e3,
+        verdict.shape_best_name.c_str(), verdict.shape_best * 1e3, verdict.message.c_str());
+    EXPECT_GE(verdict.shape_pairs, 20u);
+    return verdict;
+  };
+  // Measured: raw 56.2 mm, configured 6.7 mm (0.12x), 62 pairs.
+  const TimingCheck::Verdict right = check(1.0);
+  EXPECT_EQ(right.state, TimingCheck::State::kFits) << right.message;
+  EXPECT_LT(right.shape_configured, 0.3 * right.shape_raw) << right.message;
+  EXPECT_NE(right.message.find("shapes aligned"), std::string::npos) << right.message;
+  // Measured: 0.85x raw.
+  const TimingCheck::Verdict under = check(0.4);
+  EXPECT_NE(under.state, TimingCheck::State::kWorseThanRaw) << under.message;
+  EXPECT_LT(under.shape_configured, under.shape_raw) << under.message;
+  // Measured: 1.82x raw, every alternative as bad (their scans mostly do not align: the cap, 100 mm).
+  const TimingCheck::Verdict over = check(3.0);
+  ASSERT_EQ(over.state, TimingCheck::State::kWorseThanRaw) << over.message;
+  EXPECT_GT(over.shape_configured, 1.3 * over.shape_raw) << over.message;
+  EXPECT_LE(over.shape_raw, over.shape_best) << over.message;
+  char figure[96];
+  std::snprintf(figure, sizeof figure, "correction makes shapes worse than raw: aligned distance %.2fx raw",
+                over.shape_configured / over.shape_raw);
+  EXPECT_EQ(over.message.find(figure), 0u) << over.message;
+  EXPECT_NE(over.message.find("keeps correcting"), std::string::npos) << over.message;
 }
 
 /// tf keeps a limited past: a scan that waited for later tf while its own sweep dropped out of tf can never

@@ -120,13 +120,17 @@ void LiveRig::publishStatic(const std::string& parent, const std::string& child,
   tf_static_publisher_.publish(message);
 }
 
+void LiveRig::useOdometryYawScale(double yaw_scale, double until) {
+  odometry_ = std::make_unique<sim::NoisyOdometry>(trajectory, -2.0, until, 0.0, 1, yaw_scale);
+}
+
 void LiveRig::publishTfUntil(double t) {
   if (tf_until_ < 0.0)  // the first call: a second of history is enough (and keeps time from going back)
     tf_until_ = std::max(tf_until_, t - 1.0);
   for (double sample = std::round(tf_until_ / 0.02) * 0.02 + 0.02; sample <= t + 1e-9; sample += 0.02) {
     tf2_msgs::TFMessage message;
-    message.transforms.push_back(
-        stamped(tree_.fixed, tree_.moving, stampOf(sample), trajectory.pose(sample)));
+    message.transforms.push_back(stamped(tree_.fixed, tree_.moving, stampOf(sample),
+                                         odometry_ ? odometry_->pose(sample) : trajectory.pose(sample)));
     tf_publisher_.publish(message);
     tf_until_ = sample;
   }

@@ -10,6 +10,7 @@
 #include <deque>
 #include <functional>
 #include <map>
+#include <memory>
 #include <string>
 
 #include "lidar_deskew/sim/sim.h"
@@ -28,6 +29,10 @@ class LiveRig {
 
   /// Publishes `tree` from now on (call before connect()).
   void useTree(const TfTree& tree) { tree_ = tree; }
+
+  /// Publishes odometry that reports `yaw_scale` x the true rotation (sim::NoisyOdometry without noise)
+  /// on /tf instead of the truth, over t in [-2, `until`] s; the scans stay true.
+  void useOdometryYawScale(double yaw_scale, double until = 300.0);
 
   /// Takes t = 0 from `other`, so that one rig's tf serves both rigs' scans.
   void shareClockWith(const LiveRig& other) { epoch_ = other.epoch_; }
@@ -94,6 +99,7 @@ class LiveRig {
   ros::Time epoch_;
   double tf_until_ = -0.1;
   TfTree tree_;
+  std::unique_ptr<sim::NoisyOdometry> odometry_;  // what /tf says, when not the truth
   ros::Publisher tf_publisher_, tf_static_publisher_;
   ros::Subscriber scan_subscriber_, cloud_subscriber_, diagnostics_subscriber_;
   std::deque<sensor_msgs::LaserScan::ConstPtr> scans_;

@@ -70,8 +70,9 @@ class PlacedScan {
 PlacedScan placeCorrected(const DeskewedScan& corrected, const mrpt::poses::CPose3D& laser,
                           double bearing_step, std::size_t stride = 1);
 /// A raw scan placed with `laser`, the laser's pose at `time` [ns]: every return drawn as if measured
-/// then (what a consumer that does not deskew sees).
-PlacedScan placeRaw(const PlanarScan& scan, const mrpt::poses::CPose3D& laser, TimeNs time);
+/// then (what a consumer that does not deskew sees); every `stride`-th return kept, as placeCorrected().
+PlacedScan placeRaw(const PlanarScan& scan, const mrpt::poses::CPose3D& laser, TimeNs time,
+                    std::size_t stride = 1);
 
 /// The k-th of `count` indices spread evenly over [0, size), nearest first: 0, ..., size - 1.
 inline std::size_t spreadIndex(std::size_t k, std::size_t count, std::size_t size) {

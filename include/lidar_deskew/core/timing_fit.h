@@ -16,6 +16,7 @@
 #include "lidar_deskew/core/deskew.h"
 #include "lidar_deskew/core/motion.h"
 #include "lidar_deskew/core/scan.h"
+#include "lidar_deskew/core/scan_match.h"
 
 namespace lidar_deskew::core {
 
@@ -226,6 +227,10 @@ TimingEstimate estimateTiming(TimingFit& fit, const TimingFitConfig& config);
 /// stamp in the middle of the sweep) and compared with up to `partners` scans given before it within
 /// `history`; pairs in which either scan turns count towards a running consistency per timing. A scan
 /// keeps `beams` of its corrected returns (every k-th): a check costs about 0.1-0.3 ms.
+/// The shape score, which odometry between scans cannot spoil: the checked scan is also aligned by
+/// matchScans() with the nearest scan offer()ed before it, at most shape.max_interval earlier, whose turn
+/// rate differs by shape.min_turn_difference, raw (every beam at its stamp: what the node would publish
+/// without correcting) and under every timing; it decides whether correction makes shapes worse than raw.
 struct TimingCheckConfig {
   ConsistencyConfig consistency{0.5, 0.1, 0.5, 90};  ///< fewer points per pair than offline
   std::size_t beams = 90;  ///< every k-th return of a corrected scan, at most this many, is compared
@@ -235,14 +240,32 @@ struct TimingCheckConfig {
   std::size_t min_pairs = 20;  ///< counted pairs before any verdict
   double margin = 0.9;         ///< "markedly better": a mean below margin x the configured timing's
   double min_win_share = 0.6;  ///< ... that also wins this share of the pairs
+  /// The shape pairs' rules (max_interval, min_turn_difference, min_overlap) and the matcher. The raw
+  /// pair is matched from tf's relative pose with a coarse search of +-0.4 rad (the partner is the nearest
+  /// whose turn differs: a short turn apart); each timing's from the raw match's pose, +-refine_search.
+  ShapeConfig shape = [] {
+    ShapeConfig config;
+    config.match.rotation_search = 0.4;
+    config.match.rotation_step = 0.05;
+    config.match.coarse_iterations = 2;
+    config.match.coarse_points = 20;
+    config.match.iterations = 12;
+    return config;
+  }();
+  double refine_search = 0.0;  ///< [rad]
+  std::size_t refine_iterations = 8;
+  std::size_t min_shape_pairs = 10;  ///< shape pairs before the shape score says anything
+  std::size_t shape_history = 100;   ///< the newest shape pairs kept
+  std::size_t offered = 128;         ///< scans kept as shape partners at most (and shape.max_interval + 1 s)
 };
 
 class TimingCheck {
  public:
   enum class State {
-    kUnknown,  ///< not enough turning seen yet
-    kFits,     ///< no alternative fits markedly better
-    kBetter,   ///< `better` fits markedly better than the configured timing
+    kUnknown,       ///< not enough turning seen yet
+    kFits,          ///< no alternative fits markedly better
+    kBetter,        ///< `better` fits markedly better than the configured timing
+    kWorseThanRaw,  ///< raw scans align markedly better than corrected ones, under every timing
   };
   struct Verdict {
     State state = State::kUnknown;
@@ -250,12 +273,21 @@ class TimingCheck {
     double configured = 0.0;  ///< [m] mean pair distance under the configured timing
     double best = 0.0;        ///< [m] ... under the best alternative
     std::string best_name;    ///< the best alternative as parameters, e.g. "stamp_at: end"
+    /// The shape score (medians over the shape pairs kept; 0 without pairs): aligned distances [m].
+    std::size_t shape_pairs = 0;
+    double shape_raw = 0.0;         ///< [m] raw: every beam at its stamp
+    double shape_configured = 0.0;  ///< [m] under the configured timing
+    double shape_best = 0.0;        ///< [m] under the alternative that aligns best
+    std::string shape_best_name;
     std::string message;
   };
 
   explicit TimingCheck(const TimingConfig& configured, const TimingCheckConfig& config = TimingCheckConfig());
   /// Starts over with `configured` (the parameters changed, or time jumped).
   void reset(const TimingConfig& configured);
+  /// Keeps `scan` (each scan of the stream, in stamp order: a copy, no other work) as a possible shape
+  /// partner of a scan checked later.
+  void offer(const PlanarScan& scan);
   /// Adds one scan (corrected under the configured timing already). Scans are used in order, each once
   /// `motion` covers it under every alternative (stamp_at flipped from end to start reaches a sweep past
   /// the last beam): now, or at a later add() or tryPending(); at most 3 wait. Returns true when a scan
@@ -273,9 +305,16 @@ class TimingCheck {
  private:
   struct Entry {
     TimeNs time;
-    double turn_rate;                // [rad/s]
+    double turn_rate;                // [rad/s] signed
     std::vector<PlacedScan> placed;  // per timing, configured first
   };
+  // The shape pair of a just-placed `entry` (`scan` itself) with the nearest offered scan before it
+  // whose turn differs, if any.
+  void addShapePair(const PlanarScan& scan, const mrpt::poses::CPose3D& mount, const Entry& entry,
+                    TimeNs middle, std::size_t stride, const MotionSource& motion);
+  // Every k-th return of `scan` is placed: at most config_.beams.
+  std::size_t strideFor(const PlanarScan& scan) const;
+
   TimingCheckConfig config_;
   std::vector<std::pair<std::string, TimingConfig>> timings_;  // configured first; built per scan
   TimingConfig configured_;
@@ -289,6 +328,8 @@ class TimingCheck {
   std::vector<std::size_t> wins_;  // pairs in which the timing beat the configured one
   std::size_t pairs_ = 0;
   std::size_t scans_ = 0;
+  std::deque<PlanarScan> offered_;               // oldest first
+  std::deque<std::vector<double>> shape_pairs_;  // [m] per pair: raw, then per timing (configured first)
   ScanDeskewer deskewer_;
   DeskewedScan corrected_;
 };

@@ -95,8 +95,8 @@ class DeskewNode {
   /// check of late.
   template <class Check>
   void timeCheck(Check&& check);
-  /// Feeds the timing check with a corrected sweep when its CPU budget allows, and the rotation monitor
-  /// (scans only).
+  /// Offers every sweep to the timing check (a shape partner; its copy counts as check CPU), feeds it a
+  /// corrected sweep when its CPU budget allows, and the rotation monitor (scans only).
   void checkTiming(const typename Processor::Prepared& prepared, const mrpt::poses::CPose3D& mount);
   double latencyP99Locked() const;
   Counters countersLocked() const;  ///< the pipeline's counters with the node's timing
