@@ -72,6 +72,7 @@ enum class PipelineEvent {
   kBadTransform,   ///< a transform was refused (warning)
   kStaleTf,        ///< stale /tf transforms left out, or ones ahead (warning, once for each)
   kTwoParents,     ///< a frame has two parents on /tf (warning, once per frame)
+  kTimingFound,    ///< how the first message was timed, and again whenever that changes (info)
 };
 
 /// How long a scan waits for tf (docs/DESIGN.md §2).
@@ -219,6 +220,7 @@ class SweepPipeline {
   double tf_jump_clock_ = 0.0;             // [s] the clock when tf went back (the mark expires 2 s on)
   bool tf_follows_clock_ = false;          // the clock went back; tf going back next is the same jump
   double clock_jump_clock_ = 0.0;          // [s] the clock after it went back (the mark expires 2 s on)
+  std::string timing_found_;               // how the last message was timed (Prepared::timingFound)
 };
 
 using ScanPipeline = SweepPipeline<ScanProcessor>;
