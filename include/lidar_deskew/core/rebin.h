@@ -48,7 +48,7 @@ class ScanRebinner {
   explicit ScanRebinner(const RebinConfig& config = RebinConfig());
 
   /// Re-bins `corrected` (from ScanDeskewer::deskew on a scan with grid `grid`) onto `grid`; a bin's
-  /// range is where its ray meets the corrected contour (docs/DESIGN.md "Re-binning"):
+  /// range is where its ray meets the corrected contour (docs/CORE.md "Re-binning onto the input grid"):
   /// - consecutive points (beam indices i, i+1; for a full-circle grid also n-1, 0) closer than the
   ///   RebinConfig gap are candidates for one contour segment. A segment is a surface (a bin's range is
   ///   where its ray meets it, intensity interpolated) when one of its points lies on the line through
