@@ -39,6 +39,8 @@ constexpr std::uint32_t kMaxSeqGap = 100000;
 
 /// [s] The owner's clock going back by more than this is a time jump (as tf's stamps: TfFeed).
 constexpr double kClockJump = 1.0;
+/// [ns] kClockJump: scans' stamps going back by more than this start a new time line of the scans.
+constexpr core::TimeNs kClockJumpNs = 1'000'000'000;
 
 // The causes scans are counted under (PipelineCounters::dropped_by_cause, passed_by_cause).
 const char* const kCauseMalformed = "malformed";
@@ -50,6 +52,7 @@ const char* const kCauseTimeJump = "time went backwards";
 const char* const kCauseUndecided = "tf went back in time, undecided";
 const char* const kCauseEndLive = "tf did not reach the sweep's end within tf_timeout";
 const char* const kCauseEnd = "tf never reached the sweep's end";
+const char* const kCauseOtherLine = "tf stayed on another time line";
 const char* const kCauseBegan = "tf began after the sweep's start";
 const char* const kCauseStart = "tf no longer held the sweep's start";
 const char* const kCauseTfGap = "tf gap longer than max_tf_gap";
@@ -166,8 +169,12 @@ void SweepPipeline<Processor>::onTfEvent(TfEvent event, const std::string& text)
       ++counters_.statics_ignored;
       report_(PipelineEvent::kStaticIgnored, text);
       break;
-    case TfEvent::kTimeJump:
+    case TfEvent::kTimeJump: {
       tf_began_ = 0;  // the cache holds the new time line only
+      // tf jumped onto the scans' time line (TfFeed follows the newest scan's): the scans that came on it
+      // since their stamps went back are its, however long before tf they came.
+      const bool scans_went_back = scan_line_ != tf_line_;
+      tf_line_ = scan_line_;
       if (tf_follows_clock_) {
         // The clock went back first (counted then) and old tf came after it; the cache now holds the
         // new time line, and the scans waiting belong to it.
@@ -177,10 +184,13 @@ void SweepPipeline<Processor>::onTfEvent(TfEvent event, const std::string& text)
       ++counters_.time_jumps;
       report_(PipelineEvent::kTimeJump,
               text + " and the waiting " + std::string(Processor::kNoun) + "s of the old time line");
-      failWaiting("time went backwards", tf_.jumpedTo());
+      failWaiting(
+          "time went backwards", tf_.jumpedTo(),
+          waiting_ == Waiting::kRecording && scans_went_back ? std::optional(scan_line_) : std::nullopt);
       clock_follows_tf_ = true;  // the owner's clock may follow tf back: that is this jump, not another
       tf_jump_clock_ = clock_.value_or(0.0);
       break;
+    }
     case TfEvent::kBadTransform:
       report_(PipelineEvent::kBadTransform, text);
       break;
@@ -233,6 +243,8 @@ void SweepPipeline<Processor>::observeClock(double now) {
                                         " waiting " + std::string(Processor::kNoun) + "s");
   tf_.forgetMotion();
   tf_began_ = 0;
+  scan_line_newest_.reset();  // the scans after it start the time line tf starts on
+  tf_line_ = scan_line_;
   // tf of the old time line may still be on its way (another connection) and refill the cache: the tf
   // going back after it is then this jump, not another.
   tf_follows_clock_ = true;
@@ -241,18 +253,41 @@ void SweepPipeline<Processor>::observeClock(double now) {
 }
 
 template <class Processor>
-void SweepPipeline<Processor>::failWaiting(const std::string& reason, core::TimeNs new_time_line) {
+void SweepPipeline<Processor>::failWaiting(const std::string& reason, core::TimeNs new_time_line,
+                                           std::optional<std::uint64_t> keep_line) {
   std::deque<Pending> waiting;
   waiting.swap(pending_);
   for (Pending& pending : waiting) {
-    if (new_time_line != 0 &&
-        std::abs(pending.prepared.latest() - new_time_line) <= core::secondsToNs(kClockJump)) {
+    if ((new_time_line != 0 && std::abs(pending.prepared.latest() - new_time_line) <= kClockJumpNs) ||
+        pending.line == keep_line) {
       pending_.push_back(std::move(pending));  // stamped on the new time line: its tf is coming
     } else if (!tf_.mountKnown(pending.frame))
       dropForMount(pending, "");
     else
       fail(pending, kCauseTimeJump, reason);
   }
+}
+
+template <class Processor>
+bool SweepPipeline<Processor>::onOtherLine(const Pending& pending, core::TimeNs newest) const {
+  return waiting_ == Waiting::kRecording && pending.line > tf_line_ && newest != 0 &&
+         pending.prepared.latest() + kClockJumpNs < newest &&
+         pending.prepared.earliest() + TfFeed::kFarNs >= newest;
+}
+
+template <class Processor>
+void SweepPipeline<Processor>::noteScanLine(Pending& pending) {
+  const core::TimeNs latest = pending.prepared.latest();
+  const core::TimeNs newest = tf_.newestChainTime();
+  if (newest == 0 || std::abs(latest - newest) <= TfFeed::kFarNs) {  // else a stamp tf cannot take
+    if (scan_line_newest_ && latest + kClockJumpNs < *scan_line_newest_) {
+      ++scan_line_;  // the stamps went back: a recording whose clock restarts, or one scan stamped back
+      scan_line_newest_ = latest;
+    } else {
+      scan_line_newest_ = std::max(latest, scan_line_newest_.value_or(latest));
+    }
+  }
+  pending.line = scan_line_;
 }
 
 template <class Processor>
@@ -301,7 +336,15 @@ void SweepPipeline<Processor>::add(const typename Message::ConstPtr& message, do
     dropInvalid(pending, "header.stamp is 0 (unset: the driver did not stamp it)");
     return;
   }
+  noteScanLine(pending);                        // before tf may jump onto it
   tf_.observeSweep(pending.prepared.latest());  // the time line tf must serve
+  if (pending.line != tf_line_ && !tf_.jumpPending()) {
+    // A time line of the scans reaching tf's newest is tf's (one scan stamped back, then the stream
+    // going on as before); far behind it, the scans on it wait for tf's jump (onOtherLine).
+    const core::TimeNs newest = tf_.newestChainTime();
+    if (newest == 0 || pending.prepared.latest() + kClockJumpNs >= newest)
+      tf_line_ = pending.line;
+  }
   const char* fallback = pending.prepared.timingFallback();
   if (fallback != nullptr && counters_.time_fallbacks++ == 0)
     report_(PipelineEvent::kTimeFallback, std::string(fallback) + " (counted)");
@@ -373,8 +416,8 @@ void SweepPipeline<Processor>::serveRecorded(double now) {
   std::map<std::string, bool> mount_known;  // by frame, for this call
   for (auto it = pending_.begin(); it != pending_.end();) {
     const core::TimeNs latest = it->prepared.latest();
-    if (newest == 0 || (latest > newest && latest <= newest + TfFeed::kFarNs)) {
-      ++it;
+    if (newest == 0 || (latest > newest && latest <= newest + TfFeed::kFarNs) || onOtherLine(*it, newest)) {
+      ++it;  // tf's newest on an old time line would serve it from that one's cache
       continue;
     }
     std::string never;
@@ -406,6 +449,13 @@ std::string SweepPipeline<Processor>::whyNotCovered(const Pending& pending) cons
   if (tf_.jumpPending())
     return "tf " + tf_.fixedFrame() + " -> " + tf_.baseFrame() +
            " went back in time: a time jump or stale tf, not yet told apart";
+  const core::TimeNs newest = tf_.newestChainTime();
+  if (onOtherLine(pending, newest)) {
+    return "tf " + tf_.fixedFrame() + " -> " + tf_.baseFrame() + " stayed on another time line: the scans' " +
+           "stamps went back by more than " + formatNumber(kClockJump) + " s (a recording whose clock " +
+           "restarts?) and tf did not follow; its newest lies " +
+           formatNumber(core::nsToSeconds(newest - pending.prepared.latest())) + " s after the sweep's end";
+  }
   return tf_.whyNotCovered(pending.prepared.earliest(), pending.prepared.latest(),
                            core::secondsToNs(pending.arrival));
 }
@@ -417,6 +467,8 @@ std::string SweepPipeline<Processor>::causeNotCovered(const Pending& pending) co
   const core::TimeNs newest = tf_.newestChainTime();
   if (newest == 0)
     return "no tf " + tf_.fixedFrame() + " -> " + tf_.baseFrame();
+  if (onOtherLine(pending, newest))
+    return kCauseOtherLine;
   if (newest < pending.prepared.latest())
     return waiting_ == Waiting::kRecording ? kCauseEnd : kCauseEndLive;
   return pending.prepared.earliest() < tf_began_ ? kCauseBegan : kCauseStart;
@@ -472,6 +524,7 @@ template <class Processor>
 void SweepPipeline<Processor>::flush() {
   std::deque<Pending> waiting;
   waiting.swap(pending_);
+  const core::TimeNs newest = tf_.newestChainTime();
   for (const Pending& pending : waiting) {
     std::string never;
     const Coverage coverage = tf_.coverage(pending.prepared.earliest(), pending.prepared.latest(), &never);
@@ -480,6 +533,8 @@ void SweepPipeline<Processor>::flush() {
       dropInvalid(pending, never);
     } else if (!tf_.mountKnown(pending.frame)) {
       dropForMount(pending, "");
+    } else if (onOtherLine(pending, newest)) {
+      failNotCovered(pending, "");  // tf's cache may cover it, from another time line
     } else if (coverage == Coverage::kCovered) {
       correct(pending, false, clock_.value_or(pending.arrival));  // tf that went back undecided is not in it
     } else {

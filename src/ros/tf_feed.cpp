@@ -125,6 +125,16 @@ bool TfFeed::add(const geometry_msgs::TransformStamped& transform_in, bool is_st
     if (backward_.count(child) > 0)
       dropStale(child, stamp);
   }
+  // tf2 refuses a transform stamped more than the cache time before its frame's newest, and says so on
+  // the console at each one (TF_OLD_DATA): a stray publisher of stale tf, left out here and said once.
+  const auto held = newest_dynamic_stamps_.find(child);
+  if (held != newest_dynamic_stamps_.end() && stamp + cache_time_.toNSec() < held->second) {
+    notify(TfEvent::kStaleIgnored, "ignoring /tf " + parent + " -> " + child + " stamped " +
+                                       formatNumber(core::nsToSeconds(held->second - stamp)) +
+                                       " s before the frame's newest, more than the tf cache keeps (" +
+                                       formatNumber(cacheTime()) + " s): stale tf from another publisher?");
+    return true;
+  }
   bool taken = false;
   std::string refusal;
   try {
@@ -138,6 +148,8 @@ bool TfFeed::add(const geometry_msgs::TransformStamped& transform_in, bool is_st
     return true;
   }
   noteDynamicParent(child, parent, stamp);
+  core::TimeNs& frame_newest = newest_dynamic_stamps_[child];
+  frame_newest = std::max(frame_newest, stamp);
   if (on_chain) {
     core::TimeNs& newest_stamp = newest_link_stamps_[child];
     newest_stamp = std::max(newest_stamp, stamp);
@@ -285,6 +297,7 @@ void TfFeed::clearMotion(const geometry_msgs::TransformStamped* first) {
   buffer_->clear();
   motion_.clearSampleTimes();
   newest_link_stamps_.clear();
+  newest_dynamic_stamps_.clear();
   dynamic_parents_.clear();
   backward_.clear();
   // The held transforms went back with the time: they are on the new time line too (each judged again).
@@ -320,6 +333,7 @@ void TfFeed::rebuildWithout(const std::string& child) {
   motion_.setBuffer(*buffer_);
   motion_.clearSampleTimes();
   newest_link_stamps_.clear();
+  newest_dynamic_stamps_.clear();
   backward_.clear();
   held_.clear();
 }

@@ -616,6 +616,106 @@ TEST(ScanPipeline, RecordingGivesUpOnTfThatStopped) {
   EXPECT_TRUE(holds(lastSaid(run, PipelineEvent::kTfFailure), "(waited 30 s of record time)"));
 }
 
+/// What a recording whose clock restarts gave: the drive for `kRound` s, then the drive again from its
+/// start, stamped from 1 s after the first round's epoch (scans and tf go back 5.2 s; the first round's
+/// tf cache holds the new stamps, with the other drive's poses), record time going on. tf at 50 Hz
+/// recorded `lag` s after its stamp, scans at 40 Hz at their end.
+struct RestartedRecording {
+  std::size_t scans = 0;
+  PipelineCounters counters;
+  double rms = 0.0;  ///< [m] of the corrected points to the true walls (each round's own truth)
+};
+
+RestartedRecording recordingWithRestart(double lag) {
+  constexpr double kRound = 6.0;  // [s]
+  sim::LidarModel model = sim::LidarModel::utm30lx360();
+  model.beams = 180;  // 2 degree steps: the test in seconds, the timing the UTM-30LX's
+  PipelineRun run(Drive(TfTree(), model), {}, "", ros_adapter::Waiting::kRecording);
+  Drive restarted = run.drive;
+  restarted.epoch += core::secondsToNs(1.0);
+  const Drive* const rounds[] = {&run.drive, &restarted};
+  // Every message of both rounds by record time: tf's (round, t) and scans' (round, first beam).
+  struct Message {
+    double record;
+    int round;
+    double t;
+    bool scan;
+  };
+  std::vector<Message> messages;
+  RestartedRecording recording;
+  for (int round = 0; round < 2; ++round) {
+    const double clock_start = round * (kRound + lag + 1.0);
+    for (int k = -5; k <= static_cast<int>(std::lround(kRound / kTfPeriod)) + 5; ++k)
+      messages.push_back({clock_start + k * kTfPeriod + lag, round, k * kTfPeriod, false});
+    for (int k = 0; k < static_cast<int>(std::lround(kRound * 40)); ++k, ++recording.scans)
+      messages.push_back({clock_start + 0.025 * (k + 1), round, 0.025 * k, true});
+  }
+  std::stable_sort(messages.begin(), messages.end(),
+                   [](const Message& a, const Message& b) { return a.record < b.record; });
+  int statics_sent = -1;
+  for (const Message& message : messages) {
+    const Drive& drive = *rounds[message.round];
+    if (statics_sent < message.round) {  // latched /tf_static, recorded again as the drive restarts
+      run.pipeline.addTransforms(drive.statics(), true, message.record);
+      statics_sent = message.round;
+    }
+    if (message.scan)
+      run.pipeline.add(drive.scanAt(message.t), message.record, message.round);
+    else
+      run.pipeline.addTransforms({drive.motionAt(message.t)}, false, message.record);
+    run.pipeline.expire(message.record);
+  }
+  run.pipeline.flush();
+  recording.counters = run.pipeline.counters();
+  std::vector<double> distances;
+  for (const PipelineResult& result : run.results) {
+    if (!result.corrected)
+      continue;
+    for (double d :
+         rounds[result.id]->distances(result.outputs.cloud->points, result.outputs.scan->header.stamp))
+      distances.push_back(d);
+  }
+  recording.rms = rms(distances);
+  return recording;
+}
+
+// A recording whose clock restarts (a simulator restarted while recording), tf recorded 0, 1.5 or 2.5 s
+// after the scans it covers: the new time line's scans come before any tf of it, tf's newest still on
+// the old line. They wait for tf's jump and on across it: every scan is corrected onto its own drive's
+// walls. Before, those scans were served from the old line's tf cache, with the other drive's poses
+// (1.5 s: 33.8 mm RMS over all 480 scans), or dropped when their tf came more than 1 s after them
+// (2.5 s: 478 of 480, "time went backwards"); 0 s was right.
+TEST(ScanPipeline, RecordingWhoseClockRestartsCorrectsEveryScan) {
+  for (const double lag : {0.0, 1.5, 2.5}) {
+    const RestartedRecording recording = recordingWithRestart(lag);
+    std::printf("clock restart, tf %.1f s late: %llu of %zu scans corrected, %llu time jumps, rms %.3f mm\n",
+                lag, static_cast<unsigned long long>(recording.counters.published), recording.scans,
+                static_cast<unsigned long long>(recording.counters.time_jumps), 1e3 * recording.rms);
+    EXPECT_EQ(recording.counters.time_jumps, 1u) << lag;
+    EXPECT_EQ(recording.counters.published, recording.scans) << lag;
+    EXPECT_LT(recording.rms, 1e-3) << lag;
+  }
+}
+
+// One scan stamped 1.6 s back in a recording, the stream going on as before: the scans' stamps went
+// back, but the next scan is on tf's time line again, so is the one stamped back. It is corrected
+// (from tf's cache) as any other, not held for a time jump that never comes.
+TEST(ScanPipeline, RecordingScanStampedBackOnceIsCorrected) {
+  PipelineRun run(Drive(), {}, "", ros_adapter::Waiting::kRecording);
+  run.statics(0.0);
+  run.tfUntil(2.0);
+  for (int k = 0; k < 4; ++k)
+    run.scan(2.0 + 0.025 * k);
+  run.pipeline.add(run.drive.scanAt(0.5), 2.1);  // 1.6 s behind the scans and tf
+  EXPECT_EQ(run.pipeline.waiting(), 1u);         // the time line of the scans may have restarted
+  for (int k = 4; k < 8; ++k)
+    run.scan(2.0 + 0.025 * k);
+  EXPECT_EQ(run.pipeline.waiting(), 0u);
+  EXPECT_EQ(run.pipeline.counters().published, 9u);
+  EXPECT_EQ(run.pipeline.counters().time_jumps, 0u);
+  EXPECT_LT(rms(run.cloudDistances()), 1e-3);
+}
+
 /// What a 60 s drive gave: scans at 40 Hz arriving at their end, tf at 50 Hz, the clock on the stamps'
 /// time line plus `clock_offset` [s]; beside it a stray publisher of odom -> base_link (the true pose
 /// stamped `stray_offset` s off) at `stray_rate` Hz (0: none).

@@ -266,6 +266,31 @@ TEST(TfFeed, StaleTfOfAStrayPublisherIsLeftOutAndTheCacheKept) {
   EXPECT_EQ(fed.events[TfEvent::kTimeJump], 1);
 }
 
+// A stray publisher of map -> odom (off the chain odom -> base_link) 60 s stale beside the real one:
+// tf2 refused each of its transforms, older than its 10 s cache, with a TF_OLD_DATA warning on the
+// console at every one. They are left out before tf2 sees them, counted as stale tf, and the real
+// map -> odom is still answered.
+TEST(TfFeed, TfOlderThanTheCacheIsLeftOutBeforeTf2) {
+  Fed fed;
+  for (int k = 0; k <= 1000; ++k) {
+    const double t = 0.02 * k;
+    fed.feed.add(kDrive.motionAt(t), false);
+    fed.feed.add(stamped("map", "odom", kDrive.stampOf(t), {1.0, 2.0, 0.5}), false);
+    if (k % 50 == 0 && t >= 1.0)
+      fed.feed.add(stamped("map", "odom", kDrive.stampOf(t - 60.0), {9.0, 9.0, 1.0}), false);
+  }
+  EXPECT_EQ(fed.events[TfEvent::kStaleIgnored], 20);
+  EXPECT_EQ(fed.events[TfEvent::kBadTransform], 0);  // tf2 refused them: 20, each warned on the console
+  EXPECT_TRUE(
+      holds(fed.texts[TfEvent::kStaleIgnored],
+            "map -> odom stamped 60 s before the frame's newest, more than the tf cache keeps (10 s)"));
+  EXPECT_EQ(fed.events[TfEvent::kTimeJump], 0);
+  const geometry_msgs::TransformStamped map_odom =
+      fed.feed.buffer().lookupTransform("map", "odom", kDrive.stampOf(15.0));
+  EXPECT_NEAR(map_odom.transform.translation.x, 1.0, 1e-9);
+  EXPECT_TRUE(fed.feed.covers(at(11.0), at(20.0)));
+}
+
 // A transform tf2 refuses leaves no trace: one stamped near ros::Time's end (2106, tf2 throws on it)
 // moved the link's newest stamp there, so every real transform after it went back 'by 80 years' and
 // three in a row cleared the cache as a time jump.

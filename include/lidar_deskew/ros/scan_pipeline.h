@@ -83,9 +83,12 @@ enum class Waiting {
   /// Offline (a recording, fed in record order): until tf's newest stamp on the fixed -> base chain
   /// passes the sweep's last beam. Then it is served, or failed alone with its cause when tf does not
   /// cover it (tf no longer holds its start, tf began after it); a scan does not hold back those
-  /// behind it. Neither tf_timeout nor queue_size drops a scan tf will cover: a scan still waiting
-  /// after kRecordedTfWait (or tf_timeout, if longer) on the owner's clock fails (tf stopped, or
-  /// never comes: this bounds the memory of a long recording), and flush() decides every scan alone.
+  /// behind it. When the scans' stamps went back by more than 1 s (a recording whose clock restarts)
+  /// and tf has not followed yet, the scans of the new time line more than 1 s behind tf's newest wait
+  /// for tf's jump (it would serve them from the old time line), and all of them wait on across it.
+  /// Neither tf_timeout nor queue_size drops a scan tf will cover: a scan still waiting after
+  /// kRecordedTfWait (or tf_timeout, if longer) on the owner's clock fails (tf stopped, or never comes:
+  /// this bounds the memory of a long recording), and flush() decides every scan alone.
   kRecording,
 };
 
@@ -135,8 +138,9 @@ class SweepPipeline {
   /// Serves the scans tf covers. Waiting::kTimeout: in arrival order (a waiting scan holds back those
   /// behind it); a scan whose times tf cannot take (TfFeed::Coverage::kNever: far from tf's time
   /// line) is dropped as invalid when it reaches the head. Waiting::kRecording: each scan alone, once
-  /// tf's newest passes its last beam (served, or failed with its cause), kNever ones at once. None
-  /// is served while tf went back undecided (TfFeed::jumpPending).
+  /// tf's newest passes its last beam (served, or failed with its cause), kNever ones at once, but not
+  /// those of a time line of the scans that tf has not followed yet (Waiting::kRecording). None is
+  /// served while tf went back undecided (TfFeed::jumpPending).
   void serveReady(double now);
   /// The scans that have waited too long at `now` [s] (tf_timeout; Waiting::kRecording: the longer of
   /// it and kRecordedTfWait): extrapolated when max_extrapolation allows, else failed (dropped or
@@ -171,6 +175,8 @@ class SweepPipeline {
     double arrival = 0.0;
     std::uint64_t id = 0;
     bool covered = false;  // Waiting::kRecording: tf covers it; it waits for its mount
+    /// The scans' time line it came on (scan_line_ then).
+    std::uint64_t line = 0;
   };
 
   /// Every call's `now` passes here: the clock going back by more than a second is a time jump (a /clock
@@ -178,8 +184,15 @@ class SweepPipeline {
   void observeClock(double now);
   /// Fails every waiting scan (dropped without a mount, else per on_tf_failure): their tf will not come.
   /// With `new_time_line` [ns] (tf jumped back to it), the scans whose latest time lies within 1 s of it
-  /// keep waiting: their tf is the new one.
-  void failWaiting(const std::string& reason, core::TimeNs new_time_line = 0);
+  /// keep waiting: their tf is the new one; so do the scans that came on the scans' time line `keep_line`.
+  void failWaiting(const std::string& reason, core::TimeNs new_time_line = 0,
+                   std::optional<std::uint64_t> keep_line = std::nullopt);
+  /// Waiting::kRecording: the sweep came on a time line of the scans that tf has not followed (their
+  /// stamps went back by more than 1 s since), and lies more than 1 s behind tf's newest `newest` [ns]:
+  /// tf still on the old time line, whose cache would serve it with the old motion.
+  bool onOtherLine(const Pending& pending, core::TimeNs newest) const;
+  /// Gives the sweep its time line of the scans (a new one when its stamps go back by more than 1 s).
+  void noteScanLine(Pending& pending);
   /// Waiting::kRecording's serveReady: each scan decided alone once tf's newest passes its end.
   void serveRecorded(double now);
   /// [s] How long a scan waits for tf that does not come.
@@ -220,6 +233,10 @@ class SweepPipeline {
   double tf_jump_clock_ = 0.0;             // [s] the clock when tf went back (the mark expires 2 s on)
   bool tf_follows_clock_ = false;          // the clock went back; tf going back next is the same jump
   double clock_jump_clock_ = 0.0;          // [s] the clock after it went back (the mark expires 2 s on)
+  /// The scans' time lines: a new one each time their stamps go back by more than 1 s (Pending::line).
+  std::uint64_t scan_line_ = 0;
+  std::optional<core::TimeNs> scan_line_newest_;  // [ns] the newest latest beam on it
+  std::uint64_t tf_line_ = 0;                     // the scans' time line tf is known to be on
   std::string timing_found_;               // how the last message was timed (Prepared::timingFound)
 };
 

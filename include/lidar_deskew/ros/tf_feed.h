@@ -25,7 +25,8 @@ enum class TfEvent {
   kStaticIgnored,  ///< a /tf_static parent of a frame that moves on /tf was left out (once per frame)
   kTimeJump,       ///< a link's stamps went back by more than 1 s and went on so: the tf cache was cleared
   kStaleIgnored,   ///< a transform stamped over 1 s before its link's newest, the link's time line going on
-                   ///< (a stray publisher of stale tf): left out, reported for each such transform
+                   ///< (a stray publisher of stale tf), or, on any dynamic link, more than the cache time
+                   ///< before its frame's newest (tf2 would refuse it): left out, reported for each
   kAheadIgnored,   ///< a transform stamped over 1 s after its link's newest, off the time line of the
                    ///< sweeps (a stray publisher on a clock ahead): left out, reported for each
   kTwoParents,     ///< a frame has two parents on /tf (once per frame)
@@ -231,6 +232,9 @@ class TfFeed {
   /// By child: its parents on /tf and the newest stamp [ns] of each (two at once: reported).
   std::map<std::string, std::map<std::string, core::TimeNs>> dynamic_parents_;
   std::map<std::string, std::string> two_parents_;  // child -> "a and b", each reported once
+  /// [ns] By child frame, every dynamic link: the newest stamp tf2 holds (it refuses one older by more
+  /// than the cache time, with a console warning at each).
+  std::map<std::string, core::TimeNs> newest_dynamic_stamps_;
 };
 
 }  // namespace lidar_deskew::ros_adapter
