@@ -45,7 +45,13 @@ if [ ! -f "$build/CMakeCache.txt" ] || [ "$script" -nt "$build/CMakeCache.txt" ]
     -DCATKIN_BUILD_BINARY_PACKAGE=ON -DCATKIN_ENABLE_TESTING=OFF -DCMAKE_DISABLE_FIND_PACKAGE_benchmark=ON \
     >"$work/configure.log" || { cat "$work/configure.log" >&2; exit 1; }
 fi
-cmake --build "$build" -j"$jobs" >/dev/null
+# A cold build takes minutes: say where it is (stderr; stdout carries only the .deb's path).
+echo "build_deb.sh: building in $build (log: $work/build.log)" >&2
+cmake --build "$build" -j"$jobs" 2>&1 | tee "$work/build.log" |
+  awk '/^\[ *[0-9]+%\]/ { p = substr($0, 2, index($0, "%") - 2) + 0; if (p >= shown + 10) { shown = p;
+       printf "build_deb.sh: %d%% built\n", p > "/dev/stderr" } }' ||
+  { tail -n 40 "$work/build.log" >&2; exit 1; }
+echo "build_deb.sh: packaging" >&2
 rm -rf "$work/pkg"
 DESTDIR="$stage" cmake --install "$build" --strip >/dev/null
 # Python's bytecode is the machine's own business (it is written on first import, or by py3compile)

@@ -184,6 +184,11 @@ Calibration calibrateBag(const CalibrateOptions& options) {
     }
     calibration.scan_topic = topics.front();
   }
+  const auto say = [&options](const std::string& text) {
+    if (options.progress)
+      options.progress(text);
+  };
+  say("reading tf");
   std::map<ros_adapter::TfEvent, std::size_t> tf_events;
   const std::unique_ptr<ros_adapter::TfFeed> tf =
       eval::loadRecordedTf(bag, options.input, options.params.fixed_frame, options.params.base_frame, nullptr,
@@ -194,6 +199,7 @@ Calibration calibrateBag(const CalibrateOptions& options) {
   calibration.tf_refused = tf_events[ros_adapter::TfEvent::kBadTransform];
   const rosbag::TopicQuery topic(std::vector<std::string>{calibration.scan_topic});
 
+  say("reading " + calibration.scan_topic + "'s stamps");
   // First pass: each scan's stamp, frame and validity only (the bag is streamed: memory does not grow
   // with the recording).
   std::vector<ScanIndex> index;
@@ -261,6 +267,8 @@ Calibration calibrateBag(const CalibrateOptions& options) {
   index.shrink_to_fit();
 
   // Second pass: the chosen scans.
+  say("reading " + std::to_string(candidates.size() - calibration.not_chosen) + " scans of " +
+      calibration.scan_topic);
   std::vector<core::PlanarScan> scans;
   std::size_t position = 0;
   for (const rosbag::MessageInstance& message : rosbag::View(bag, topic)) {
@@ -285,11 +293,13 @@ Calibration calibrateBag(const CalibrateOptions& options) {
   if (!mount)
     throw std::runtime_error(options.input + ": no laser mount: " + error);
   std::vector<core::PlanarScan> shape_scans = scans;
+  say("fitting the timing to " + std::to_string(scans.size()) + " scans");
   core::TimingFit fit(std::move(scans), *mount, tf->motion(), 0.0, options.fit);
   calibration.stamp_period = fit.nominalPeriod();
   calibration.stamp_period_sigma = fit.nominalPeriodSigma();
   calibration.estimate = core::estimateTiming(fit, options.fit);
   calibration.sweep = calibration.estimate.sweep;
+  say("checking the scans' shapes");
   checkShapes(calibration, std::move(shape_scans), *mount, tf->motion());
   return calibration;
 }

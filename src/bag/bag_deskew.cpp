@@ -262,12 +262,8 @@ BagDeskewSummary deskewBag(const BagDeskewOptions& options) {
       const ros_adapter::PipelineCounters& counters = summary.counters[topic];
       if (counters.received > 0 && counters.published == 0) {
         const ros_adapter::TfFeed& tf = pipeline->tf();
-        std::string error;
-        if (!tf.buffer().canTransform(tf.fixedFrame(), tf.baseFrame(), ros::Time(0), &error)) {
-          throw std::runtime_error(options.input + " has no tf from '" + tf.fixedFrame() + "' to '" +
-                                   tf.baseFrame() + "' (set fixed_frame / base_frame); frames in its tf:\n" +
-                                   tf.buffer().allFramesAsString());
-        }
+        if (const std::string why = tf.whyNoChain(); !why.empty())
+          throw std::runtime_error(options.input + ": " + why + " (set fixed_frame / base_frame)");
       }
     }
     output.close();

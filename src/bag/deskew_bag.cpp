@@ -213,8 +213,13 @@ int main(int argc, char** argv) {
     if (consistency) {
       for (const std::string& topic : summary.chosen_topics) {
         if (std::find(summary.cloud_topics.begin(), summary.cloud_topics.end(), topic) !=
-            summary.cloud_topics.end())
-          continue;  // the consistency measure is of planar scans
+            summary.cloud_topics.end()) {
+          // The consistency and shape measures are of planar scans: say so rather than print nothing.
+          std::printf("  %s: no consistency measure for PointCloud2 topics (it aligns planar scans); "
+                      "on a simulated recording, deskew_metrics --cloud BAG TRUTH measures clouds against the truth\n",
+                      topic.c_str());
+          continue;
+        }
         const std::string corrected = options.replace ? topic : topic + "_deskewed";
         const std::string raw = options.replace ? topic + "_raw" : topic;
         const eval::ConsistencyReport report =

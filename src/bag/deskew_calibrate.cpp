@@ -1,5 +1,6 @@
 // deskew_calibrate: estimates a planar LIDAR's timing from a recording (docs/CALIBRATION.md).
 #include <algorithm>
+#include <chrono>
 #include <cstdio>
 #include <cstdlib>
 #include <exception>
@@ -116,6 +117,11 @@ int main(int argc, char** argv) {
   options.input = positional[0];
   try {
     options.params = ros_adapter::DeskewParams::load(ros_adapter::TextParams(frames));
+    const auto started = std::chrono::steady_clock::now();
+    options.progress = [started](const std::string& stage) {
+      const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+      std::fprintf(stderr, "deskew_calibrate: [%.0f s] %s ...\n", elapsed, stage.c_str());
+    };
     const bag::Calibration calibration = bag::calibrateBag(options);
     std::printf("deskew_calibrate: %s\n", bag::describe(calibration).c_str());
     if (!curve.empty() && !calibration.estimate.coarse_curve.empty()) {

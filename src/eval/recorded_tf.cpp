@@ -40,12 +40,8 @@ std::unique_ptr<ros_adapter::TfFeed> loadRecordedTf(rosbag::Bag& bag, const std:
         feed->add(transform, message.getTopic() == "/tf_static");
     }
   }
-  std::string error;
-  if (!feed->buffer().canTransform(feed->fixedFrame(), feed->baseFrame(), ros::Time(0), &error)) {
-    throw std::runtime_error(bag_path + " has no tf from '" + feed->fixedFrame() + "' to '" +
-                             feed->baseFrame() + "' (set fixed_frame / base_frame); frames in its tf:\n" +
-                             feed->buffer().allFramesAsString());
-  }
+  if (const std::string why = feed->whyNoChain(); !why.empty())
+    throw std::runtime_error(bag_path + ": " + why + " (set fixed_frame / base_frame)");
   return feed;
 }
 

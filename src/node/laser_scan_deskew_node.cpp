@@ -56,6 +56,7 @@ LogPolicy policyOf(PipelineEvent event) {
     case PipelineEvent::kTimeJump:  // each counted; a flood (a clock gone wrong) is not one line each
       return {Level::Warn, 1.0};
     case PipelineEvent::kMountFirst:
+    case PipelineEvent::kTimingFound:  // once, and when it changes
       return {Level::Info, 0.0};
   }
   return {Level::Warn, 1.0};
@@ -587,6 +588,11 @@ void DeskewNode<Processor>::produceDiagnostics(diagnostic_updater::DiagnosticSta
   // The summary names the newest drop's cause (its whole text is "last drop").
   if (dropped > dropped_before || counters.passed_through > was.passed_through) {
     status.summary(diagnostic_msgs::DiagnosticStatus::WARN, last_drop_);
+  } else if (counters.received > 0 && counters.published == 0) {
+    // Input stopped, but nothing it brought was ever published: that stays a warning until one is.
+    status.summary(diagnostic_msgs::DiagnosticStatus::WARN,
+                   "none of the " + std::to_string(counters.received) + " " + std::string(Processor::kNoun) +
+                       "s received was corrected" + (last_drop_.empty() ? "" : "; last drop: " + last_drop_));
   } else {
     status.summary(diagnostic_msgs::DiagnosticStatus::OK, "ok");
   }

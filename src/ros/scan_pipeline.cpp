@@ -105,6 +105,8 @@ std::string toString(PipelineEvent event) {
       return "stale tf";
     case PipelineEvent::kTwoParents:
       return "two parents";
+    case PipelineEvent::kTimingFound:
+      return "timing";
   }
   return "event";
 }
@@ -346,6 +348,10 @@ void SweepPipeline<Processor>::add(const typename Message::ConstPtr& message, do
   const char* fallback = pending.prepared.timingFallback();
   if (fallback != nullptr && counters_.time_fallbacks++ == 0)
     report_(PipelineEvent::kTimeFallback, std::string(fallback) + " (counted)");
+  if (std::string found = pending.prepared.timingFound(); !found.empty() && found != timing_found_) {
+    timing_found_ = std::move(found);
+    report_(PipelineEvent::kTimingFound, timing_found_);
+  }
   pending_.push_back(std::move(pending));
   // A recording's scans wait for tf that comes late without a count: tf decides each one.
   while (waiting_ == Waiting::kTimeout && static_cast<int>(pending_.size()) > params_.queue_size) {

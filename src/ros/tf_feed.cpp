@@ -454,6 +454,8 @@ std::string TfFeed::whyNotCovered(core::TimeNs first, core::TimeNs last, core::T
 }
 
 std::string TfFeed::whyNoMount(const std::string& frame) const {
+  if (!buffer_->_frameExists(base_frame_))
+    return unknownFrame(base_frame_, "base_frame");
   if (!buffer_->_frameExists(frame))
     return unknownFrame(frame, "the scan's frame");
   std::string error;
@@ -463,6 +465,28 @@ std::string TfFeed::whyNoMount(const std::string& frame) const {
     error = thrown.what();
   }
   return "not connected to " + base_frame_ + ": " + error;
+}
+
+std::string TfFeed::whyNoChain() const {
+  std::string error;
+  try {
+    if (buffer_->canTransform(fixed_frame_, base_frame_, ros::Time(0), &error))
+      return "";
+  } catch (const std::exception& thrown) {
+    error = thrown.what();
+  }
+  if (!buffer_->_frameExists(fixed_frame_))
+    return unknownFrame(fixed_frame_, "fixed_frame");
+  if (!buffer_->_frameExists(base_frame_))
+    return unknownFrame(base_frame_, "base_frame");
+  std::vector<std::string> frames;
+  buffer_->_getFrameStrings(frames);
+  std::sort(frames.begin(), frames.end());
+  std::string known;
+  for (const std::string& name : frames)
+    known += (known.empty() ? "" : ", ") + name;
+  return "tf " + fixed_frame_ + " -> " + base_frame_ + ": the frames are not connected (" + error +
+         "); tf's frames: " + known;
 }
 
 core::TimeNs TfFeed::newestChainTime() const {

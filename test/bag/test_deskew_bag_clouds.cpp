@@ -12,6 +12,9 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <map>
+#include <string>
+#include <vector>
 
 #include "lidar_deskew/bag/bag_deskew.h"
 #include "lidar_deskew/ros/cloud_timing.h"
@@ -49,6 +52,7 @@ std::vector<sensor_msgs::PointCloud2::ConstPtr> cloudsOn(const std::string& bag_
 struct Scores {
   double raw = 0.0, ours = 0.0, exact = 0.0;  // [m] RMS distance to the true surfaces
   std::size_t clouds = 0;
+  std::vector<std::string> said;  // deskew_bag's notes (not exact run)
 };
 
 /// Distances of every output cloud's returns, placed with the true sensor pose at its stamp.
@@ -87,6 +91,8 @@ Scores run(const std::string& scenario_name, CloudConvention convention, bool no
     deskew.cloud_topics = {"/points"};  // nothing else: the time field is found alone
     deskew.params = params;
     deskew.params.exact = exact;
+    if (!exact)
+      deskew.inform = [&scores](const std::string& text) { scores.said.push_back(text); };
     deskew.params.deskew.knot_interval = exact ? 0.0 : deskew.params.deskew.knot_interval;
     const bag::BagDeskewSummary summary = bag::deskewBag(deskew);
     const ros_adapter::PipelineCounters& counters = summary.counters.at("/points");
@@ -125,6 +131,23 @@ TEST(DeskewBagClouds, EveryDriverConventionIsCorrectedWithNoOption) {
     EXPECT_GT(scores.raw, 20e-3) << sim::cloudConventionName(convention);
     EXPECT_LT(scores.ours, scores.exact + 0.1e-3) << sim::cloudConventionName(convention);
     EXPECT_LT(scores.ours, 1e-3) << sim::cloudConventionName(convention);
+    // Which field timed the clouds is said, once: the field each driver writes (sim/cloud_bag.h's table),
+    // and for two well-known ones its type, unit and base.
+    const std::map<CloudConvention, std::string> field = {
+        {CloudConvention::kOuster, "t (uint32, ns, from header.stamp)"},
+        {CloudConvention::kVelodyneFirst, "time (float32, s, from header.stamp)"},
+        {CloudConvention::kVelodyneLast, "time (float32, s, from header.stamp)"},
+        {CloudConvention::kHesai, "timestamp ("},
+        {CloudConvention::kRoboSense, "timestamp ("},
+        {CloudConvention::kLivox2, "timestamp ("},
+        {CloudConvention::kAutoware, "time_stamp ("},
+        {CloudConvention::kLivoxCustom, "offset_time ("},
+        {CloudConvention::kLaserGeometry, "stamps ("}};
+    const std::string expected = "/points: point times from field " + field.at(convention);
+    EXPECT_EQ(std::count_if(scores.said.begin(), scores.said.end(),
+                            [&](const std::string& line) { return line.rfind(expected, 0) == 0; }),
+              1)
+        << sim::cloudConventionName(convention) << ": expected " << expected;
   }
 }
 
@@ -162,6 +185,9 @@ TEST(DeskewBagClouds, NoTimeFieldWithAzimuthTiming) {
   ros_adapter::DeskewParams params;
   params.azimuth.enabled = true;  // the simulated VLP-16 spins clockwise, stamped at its first point
   const Scores scores = run("VLP16/high/arc", CloudConvention::kNoTime, false, params);
+  EXPECT_NE(std::find(scores.said.begin(), scores.said.end(),
+                      "/points: point times from the azimuth (no time field)"),
+            scores.said.end());
   std::printf("no_time with azimuth_timing: raw %.2f mm, ours %.4f mm, one lookup per point %.4f mm RMS\n",
               1e3 * scores.raw, 1e3 * scores.ours, 1e3 * scores.exact);
   EXPECT_GE(scores.clouds, 4u);

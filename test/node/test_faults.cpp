@@ -359,6 +359,30 @@ TEST(Faults, StatusCarriesTheNodesNameOnce) {
   EXPECT_EQ(level, diagnostic_msgs::DiagnosticStatus::WARN);
 }
 
+// A misspelt fixed_frame (misspelt_frame.test runs this alone, with fixed_frame 'odm'): every scan is
+// dropped; once input stops, /diagnostics stays a WARN that nothing was corrected, naming the cause
+// (it went back to "ok" at the first quiet period).
+TEST(MisspeltFrame, NothingCorrectedStaysAWarning) {
+  LiveRig rig;
+  ASSERT_TRUE(rig.connect());
+  int scans = 0;
+  for (double t = 10.0; t < 10.5; t += 0.025, ++scans) {
+    rig.publishTfUntil(t + 0.05);
+    rig.publishScan(t);
+    rig.spinFor(0.025);
+  }
+  ASSERT_TRUE(rig.waitFor([&] { return rig.diagnosticNumber("dropped: tf") >= scans; }, 5.0));
+  rig.spinFor(1.0);  // quiet periods of 0.2 s: the input has stopped
+  int level = -1;
+  std::string message;
+  ASSERT_TRUE(rig.status(": deskew", level, message));
+  EXPECT_EQ(level, diagnostic_msgs::DiagnosticStatus::WARN) << message;
+  EXPECT_TRUE(holds(message, "none of the " + std::to_string(scans) + " scans received was corrected; last drop:"))
+      << message;
+  EXPECT_TRUE(holds(message, "fixed_frame 'odm' is unknown to tf (did you mean 'odom'?)")) << message;
+  EXPECT_EQ(rig.diagnosticNumber("input rate [Hz]"), 0.0);
+}
+
 // More scans wait for tf than queue_size (10): the oldest are dropped and counted as "dropped: queue";
 // the newest 10 are corrected once tf comes.
 TEST(Faults, QueueOverflowDropsTheOldest) {

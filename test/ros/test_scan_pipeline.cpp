@@ -23,18 +23,19 @@ struct PipelineRun {
   /// `fixed_frame`: instead of the tree's (a misspelt one).
   explicit PipelineRun(const Drive& drive_in, ros_adapter::DeskewParams params = {},
                        const std::string& fixed_frame = "",
-                       ros_adapter::Waiting waiting = ros_adapter::Waiting::kTimeout)
+                       ros_adapter::Waiting waiting = ros_adapter::Waiting::kTimeout,
+                       const std::string& base_frame = "")
       : drive(drive_in),
         pipeline(
-            withFrames(params, drive_in.tree, fixed_frame),
+            withFrames(params, drive_in.tree, fixed_frame, base_frame),
             [this](const PipelineResult& result) { results.push_back(result); },
             [this](PipelineEvent event, const std::string& text) { events.emplace_back(event, text); }, 10.0,
             waiting) {}
 
   static ros_adapter::DeskewParams withFrames(ros_adapter::DeskewParams params, const TfTree& tree,
-                                              const std::string& fixed_frame) {
+                                              const std::string& fixed_frame, const std::string& base_frame) {
     params.fixed_frame = fixed_frame.empty() ? tree.fixed : fixed_frame;
-    params.base_frame = tree.base;
+    params.base_frame = base_frame.empty() ? tree.base : base_frame;
     return params;
   }
   void statics(double now) { pipeline.addTransforms(drive.statics(), true, now); }
@@ -433,8 +434,8 @@ TEST(ScanPipeline, StampsTfCannotTakeAreDroppedAndTheStreamGoesOn) {
 
 // A scan tf does not cover is dropped, after tf_timeout, with its frames and its cause: a fixed_frame
 // unknown to tf (with the closest frame tf knows), tf short of the sweep's end (by how much), a sweep
-// ending after its arrival (a driver stamping late), a missing mount (the scan frame misspelt), a base
-// with two parents.
+// ending after its arrival (a driver stamping late), a missing mount (the scan frame misspelt, or the
+// base_frame), a base with two parents.
 TEST(ScanPipeline, DropsNameTheirCause) {
   ros_adapter::DeskewParams params;
   params.tf_timeout = 0.2;
@@ -483,6 +484,14 @@ TEST(ScanPipeline, DropsNameTheirCause) {
         "dropping scan at 1700000000.100000: no transform base_link -> lasr (the laser mount): the scan's "
         "frame 'lasr' is unknown to tf (did you mean 'laser'?); tf's frames: base_link, laser, odom");
     EXPECT_EQ(run.pipeline.counters().dropped_mount, 1u);
+  }
+  {
+    // A misspelt base_frame: the mount (base -> laser) is looked up first, and names the base.
+    PipelineRun run(Drive(), params, "", ros_adapter::Waiting::kTimeout, "base_lnk");
+    EXPECT_EQ(dropOne(run, 0.13, PipelineEvent::kMountMissing),
+              "dropping scan at 1700000000.100000: no transform base_lnk -> laser (the laser mount): "
+              "base_frame 'base_lnk' is unknown to tf (did you mean 'base_link'?); tf's frames: base_link, "
+              "laser, odom");
   }
   {
     PipelineRun run(Drive(), params);

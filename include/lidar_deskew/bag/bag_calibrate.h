@@ -3,6 +3,7 @@
 // (`params:=FILE`) and deskew_bag (`--params FILE`) read.
 #pragma once
 
+#include <functional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -23,6 +24,8 @@ struct CalibrateOptions {
   /// turn most (chooseScans): memory and time stay bounded whatever the recording's length.
   std::size_t max_scans = 1200;
   double segment = 10.0;
+  /// Told what is being done as each stage starts (a minute or more on a long recording); may be empty.
+  std::function<void(const std::string&)> progress;
 };
 
 /// Which of a recording's scans (stamps [ns] in order, the base's turn rate [rad/s] at each) to keep:

@@ -37,6 +37,10 @@ struct PreparedCloud {
   core::TimeNs timeOf(std::size_t i) const { return firing_times[firings.of_point[i]]; }
   core::TimeNs earliest() const { return first; }
   core::TimeNs latest() const { return last; }
+  /// How the cloud was timed, for the log: "point times from field t (uint32, ns, from header.stamp)".
+  std::string timingFound() const {
+    return byAzimuth() ? "point times from the azimuth (no time field)" : "point times from field " + time_field.describe();
+  }
   /// How the cloud was timed, when not by its own time field.
   const char* timingFallback() const {
     return byAzimuth() ? "clouds have no time field; point times come from their azimuth (azimuth_timing)"

@@ -72,6 +72,7 @@ enum class PipelineEvent {
   kBadTransform,   ///< a transform was refused (warning)
   kStaleTf,        ///< stale /tf transforms left out, or ones ahead (warning, once for each)
   kTwoParents,     ///< a frame has two parents on /tf (warning, once per frame)
+  kTimingFound,    ///< how the first message was timed, and again whenever that changes (info)
 };
 
 /// How long a scan waits for tf (docs/DESIGN.md §2).
@@ -236,6 +237,7 @@ class SweepPipeline {
   std::uint64_t scan_line_ = 0;
   std::optional<core::TimeNs> scan_line_newest_;  // [ns] the newest latest beam on it
   std::uint64_t tf_line_ = 0;                     // the scans' time line tf is known to be on
+  std::string timing_found_;               // how the last message was timed (Prepared::timingFound)
 };
 
 using ScanPipeline = SweepPipeline<ScanProcessor>;

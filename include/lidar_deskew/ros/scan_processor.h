@@ -33,6 +33,8 @@ struct PreparedScan {
   core::TimeNs latest() const { return timing.latestBeamTime(); }
   /// How the beams were timed when not by time_increment, for the log; nullptr when by it.
   const char* timingFallback() const;
+  /// For clouds, which field timed them; a scan's timing is its message's (timingFallback() otherwise).
+  std::string timingFound() const { return {}; }
 };
 
 /// The two outputs of one scan, in the scan's frame, stamped at the reference time.

@@ -130,6 +130,9 @@ class TfFeed {
   /// Why there is no mount base_frame -> `frame` (normalised): the frame unknown to tf (with the closest
   /// known name) or not connected to the base.
   std::string whyNoMount(const std::string& frame) const;
+  /// Why tf has no fixed -> base at all (empty when it has): a frame unknown to tf (with the closest
+  /// known name), or the frames not connected, with tf's frames listed.
+  std::string whyNoChain() const;
   /// [ns] The stamp of the transform that started the new time line at the last time jump (0: none).
   core::TimeNs jumpedTo() const { return jumped_to_; }
   /// True while a link's stamps went back and it is not yet told whether time jumped or the
