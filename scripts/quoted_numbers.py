@@ -117,8 +117,9 @@ class Runs:
         """deskew_bag --consistency on the Neato bag's /stable_scan with deskew_calibrate's timing (the demo)."""
         if "neato_bag" not in self.cache:
             _, params = self.calibrate("/stable_scan")
-            self.cache["neato_bag"] = run([self.tool("deskew_bag"), NEATO_BAG, os.path.join(self.work, "neato.bag"),
-                                           "--scan-topic", "/stable_scan", "--params", params, "--consistency"])
+            output_bag = os.path.join(self.work, "neato.bag")
+            self.cache["neato_bag"] = run([self.tool("deskew_bag"), NEATO_BAG, output_bag, "--scan-topic", "/stable_scan",
+                                           "--params", params, "--consistency"])
         return self.cache["neato_bag"]
 
 
@@ -187,8 +188,9 @@ def figure(runs, key):
         if parts[0] == "paper" and parts[1] == "scenarios":  # how many scenarios: all, or the paper's own
             names = runs.scenarios()
             return str(len(names) if len(parts) == 2 else sum(not n.startswith("LDS-01/") for n in names))
-        if parts[0] == "paper" and len(parts) == 3 and parts[2] == "table":  # docs/RESULTS.md's main tables
-            return "\n" + PAPER_HEADER + "\n" + "\n".join(runs.paper_rows(parts[1])) + "\n"
+        # docs/RESULTS.md's main tables, noise off or on
+        if parts[0] == "paper" and len(parts) == 3 and parts[1] in ("off", "on") and parts[2] == "table":
+            return "\n\n" + PAPER_HEADER + "\n" + "\n".join(runs.paper_rows(parts[1])) + "\n\n"
         if parts[0] == "paper" and len(parts) in (3, 4) and parts[1] in ("off", "on"):
             if parts[2] not in runs.scenarios():
                 raise KeyError(key)
@@ -228,7 +230,8 @@ def main():
                 keys += ["demo." + f for f in ("raw", "corrected", "laser_geometry", "floor")]
                 for key in keys:
                     print("%s: %s" % (key, figure(runs, key).strip().replace("\n", "\n    ")))
-                print("and paper.off|on.SCENARIO (its row) or paper.off|on.SCENARIO.raw|corrected|scan|laser_geometry_rms|p95|max")
+                print("and paper.off|on.SCENARIO (its row), "
+                      "paper.off|on.SCENARIO.raw|corrected|scan|laser_geometry_rms|p95|max")
                 return 0
             return check_or_update(files, runs, args.update)
         except ToolError as error:
