@@ -1,33 +1,51 @@
 #!/usr/bin/env bash
-# Regenerates docs/RESULTS_CALIBRATION.md: deskew_calibrate on 32 simulated recordings with timing
-# faults injected into their LaserScans (eval::calibrationCases: stamped at the end, offsets of +-10-60
-# ms, latencies of 1.65-3.4 sweeps, reversed beams, both, no period, time_increment off by a factor;
-# LDS-01, ILD26TRI, UTM-30LX and UTM-30LX-270 driving turns at normal and high speed, range noise on;
-# two without a fault; five steady spins and circles, where the offset cannot show), each then
-# corrected with the estimate and scored against the truth; the coverage of the offset's sigma over
-# LIDAR_DESKEW_COVERAGE (60) more recordings drawn at random (eval::coverageCases); and the Neato
-# recording in data/. About 35 minutes on 2 cores. Exits non-zero when a case misses a target or the
-# truth lies within 2 sigma in fewer than 90 % of the coverage recordings.
-#   bash scripts/calibration_experiments.sh
+# Regenerates docs/RESULTS_CALIBRATION.md and results/calibration_*.tsv: deskew_calibrate on 32
+# simulated recordings with timing faults injected into their LaserScans (eval::calibrationCases:
+# stamped at the end, offsets of +-10-60 ms, latencies of 1.65-3.4 sweeps, reversed beams, both, no
+# period, time_increment off by a factor; LDS-01, ILD26TRI, UTM-30LX and UTM-30LX-270 driving turns at
+# normal and high speed, range noise on; two without a fault; five steady spins and circles, where the
+# offset cannot show), each then corrected with the estimate and scored against the truth; and the
+# coverage of the offset's sigma over LIDAR_DESKEW_COVERAGE (60) more recordings drawn at random
+# (eval::coverageCases). About 20-35 minutes on 2 cores. Exits non-zero when a case misses a target or
+# the truth lies within 2 sigma in fewer than 90 % of the coverage recordings.
+#   bash scripts/calibration_experiments.sh [--render]
+# --render writes the page and the TSVs again from the last run's .build/calibration_experiments/.
 set -euo pipefail
 export PATH=/usr/bin:/bin:$PATH
 export PYTHONNOUSERSITE=1
 repo=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
-bash "$repo/scripts/install_deps.sh" >/dev/null
-bash "$repo/scripts/build_workspace.sh" >/dev/null
-(cd "$repo/.build/ws" && catkin_make -j"${LIDAR_DESKEW_JOBS:-2}" deskew_calibration_experiments >/dev/null)
-bin="$repo/.build/ws/devel/lib/lidar_deskew"
 work="$repo/.build/calibration_experiments"
-rm -rf "$work"
-mkdir -p "$work"
-
 status=0
-"$bin/deskew_calibration_experiments" --directory "$work" >"$work/table.md" 2>"$work/missed.txt" || status=$?
-"$bin/deskew_calibration_experiments" --directory "$work" --coverage "${LIDAR_DESKEW_COVERAGE:-60}" --seed 1 \
-  >"$work/coverage.md" 2>>"$work/missed.txt" || status=$?
-"$bin/deskew_calibrate" "$repo/data/neato_xv11/test_drive.bag" --scan-topic /stable_scan \
-  --output "$work/neato_timing.yaml" >"$work/neato.txt"
-summary=$(awk -F'|' 'NR > 2 {
+if [ "${1:-}" != "--render" ]; then
+  bash "$repo/scripts/install_deps.sh" >/dev/null
+  bash "$repo/scripts/build_workspace.sh" >/dev/null
+  (cd "$repo/.build/ws" && catkin_make -j"${LIDAR_DESKEW_JOBS:-2}" deskew_calibration_experiments >/dev/null)
+  bin="$repo/.build/ws/devel/lib/lidar_deskew"
+  rm -rf "$work"
+  mkdir -p "$work"
+  "$bin/deskew_calibration_experiments" --directory "$work" >"$work/table.md" 2>"$work/missed.txt" || status=$?
+  "$bin/deskew_calibration_experiments" --directory "$work" --coverage "${LIDAR_DESKEW_COVERAGE:-60}" --seed 1 \
+    >"$work/coverage.md" 2>>"$work/missed.txt" || status=$?
+  echo "${LIDAR_DESKEW_COVERAGE:-60}" >"$work/coverage_count"
+fi
+coverage_count=$(cat "$work/coverage_count" 2>/dev/null || echo 60)
+mkdir -p "$repo/results"
+# A markdown table's rows as TSV: the header row, then the data rows (the separator row left out).
+to_tsv() { awk -F' *\\| *' '/^\| / && !/^\| ---/ { out = $2; for (i = 3; i < NF; i++) out = out "\t" $i; print out }'; }
+to_tsv <"$work/table.md" >"$repo/results/calibration_cases.tsv"
+awk '/^\| case /, /^$/' "$work/coverage.md" | to_tsv >"$repo/results/calibration_coverage.tsv"
+# The page's table: every case, without the error (estimated - true), the true timing's and the noise
+# floor's RMS (in the TSV).
+cases=$(awk -F'|' 'NR == 1 { print "| scenario | fault | true offset [ms] | estimated [ms] | order | period [ms] | written | message'"'"'s timing | estimated timing | ours / floor |"
+    print "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"; next }
+  NR > 2 && /^\| / { print "|" $2 "|" $3 "|" $4 "|" $5 "|" $7 "|" $8 "|" $9 "|" $10 "|" $11 "|" $14 "|" }' "$work/table.md")
+# Coverage: the recordings whose offset is not told or misses 2 sigma, the summary and the table by
+# odometry.
+coverage_misses=$(awk -F'|' '/^\| case / { table = 1; print; getline; print; next }
+  table && /^$/ { exit } table && $8 !~ /yes/ { print }' "$work/coverage.md")
+coverage_rest=$(awk 'table && /^$/ { rest = 1 } rest { print } /^\| case / { table = 1 }' "$work/coverage.md" |
+  sed '/./,$!d')
+summary=$(awk -F'|' 'NR > 2 && /^\| / {
     gsub(/^ +| +$/, "", $2); gsub(/^ +| +$/, "", $3)
     error = $6 + 0; if (error < 0) error = -error; if (error > worst) { worst = error; at = $2 ", " $3 }
     if ($7 ~ /right/) right++; cases++
@@ -42,50 +60,39 @@ summary=$(awk -F'|' 'NR > 2 {
 cat >"$repo/docs/RESULTS_CALIBRATION.md" <<DOC
 # deskew_calibrate: timing found from data
 
-Generated by \`bash scripts/calibration_experiments.sh\` (docs/CALIBRATION.md says how the estimate is
-made). Each recording is a simulated drive with turns that start and stop (\`deskew_simulate --list-calibration\`,
-12-15 s, odometry on /tf at 50 Hz, range noise on; the last five a steady spin or circle) whose LaserScans carry a timing fault
-(\`deskew_simulate --stamp-error/--stamp-at-end/--reversed/--time-increment-factor/--zero-scan-time\`).
-deskew_calibrate estimates the timing; the bag is then corrected with the parameters it writes and
-scored against the truth, beside the same correction with the message's timing and with the true timing.
+Generated by \`bash scripts/calibration_experiments.sh\`; do not edit by hand. Every column:
+\`results/calibration_cases.tsv\` and \`results/calibration_coverage.tsv\`. How the estimate is made:
+[CALIBRATION.md](CALIBRATION.md); the real Neato recordings: [RESULTS_REAL_DATA.md](RESULTS_REAL_DATA.md).
 
-- **offsets** [ms]: the first beam's true time minus the stamp (the truth, and the estimate ± one standard
-  deviation by a bootstrap over blocks of consecutive scans; \`not told\`: the recording cannot show it, and
-  the written file keeps the message's offset); **order**: the beam order found, and the share of resamples that
-  prefer it; **period**: the revolution used (from the stamps where the message's was 0 or wrong);
-  **written**: the parameters of the file (\`unchanged\`: the message's timing fits).
-- **message's timing / estimated timing / true timing**: RMS distance [mm] of the corrected cloud's points
-  to the true walls (\`refused\`: the node drops such scans: no period, or an absurd sweep);
-  **noise floor**: what the range noise alone gives; **ours / floor**: estimated timing over the floor.
+Each recording is a simulated drive with turns that start and stop (\`deskew_simulate
+--list-calibration\`, 12-15 s, tf at 50 Hz, range noise on; the last five a steady spin or circle)
+whose LaserScans carry a timing fault. deskew_calibrate estimates the timing; the bag is corrected with
+the file it writes and scored against the truth. **offsets** [ms]: the first beam's true time minus
+the stamp, and the estimate ± 1σ (block bootstrap; \`not told\`: the recording cannot show it, the
+message's offset is kept); **order**: the beam order found (share of resamples); **period**: the
+revolution used; **written**: the file's parameters; **message's timing / estimated timing**: RMS [mm]
+of the corrected cloud to the true walls (\`refused\`: the node drops such scans); **ours / floor**:
+the estimated timing's RMS over what range noise alone gives.
 
 $summary
 
-$(cat "$work/table.md")
+$cases
 
-The last five are steady drives (\`deskew_simulate --scenario SENSOR/normal/spin|circle\`: one constant
-twist for 12 s). There a constant offset moves every scan by the same rigid transform and no comparison
-of scans can see it: deskew_calibrate says so (exit 4, "turning too uniform"), writes the beam order and
-the period, which it does see, and keeps the message's offset. In the last one the stamps are 100 ms
-late: the written file cannot know it, and the cloud stays that far off, which is what an honest
-"cannot tell" costs; a drive that starts and stops finds it.
+The last five are steady drives: a constant twist moves every scan by the same rigid transform, so no
+comparison of scans can see a constant offset. deskew_calibrate says so (exit 4, "turning too
+uniform") and writes the order and period only; in the last one the stamps are 100 ms late and stay so.
 
 ## Coverage: is sigma honest?
 
-\`deskew_calibration_experiments --coverage ${LIDAR_DESKEW_COVERAGE:-60} --seed 1\`: recordings drawn at
-random over the turns drives of the four sensors at both speeds, offsets from -0.5 to 3 sweeps, either
-beam order, odometry at 50, 20 or 10 Hz, perfect or noisy (a random walk of 2 % or 5 % per 20 ms step),
-the range noise's seed. Each is calibrated; where the offset is told, is the truth within 2 sigma of the
-estimate? (For a normal error that is 95 %; the target is 90 %.) Where it is not told, the cause.
+\`deskew_calibration_experiments --coverage $coverage_count --seed 1\`: recordings drawn at random over
+the four sensors' turns drives at both speeds, offsets from -0.5 to 3 sweeps, either beam order,
+odometry at 50, 20 or 10 Hz, perfect or a random walk of 2 % or 5 % per 20 ms step. Where the offset
+is told, is the truth within 2σ (95 % for a normal error; the target is 90 %)? The recordings that
+miss it or are not told:
 
-$(cat "$work/coverage.md")
+$coverage_misses
 
-## The Neato XV-11 recording (data/neato_xv11)
-
-A real recording: 60 scans at 5 Hz, 361 beams, odometry at 5-7 Hz.
-
-\`\`\`
-$(sed "s|$repo/||g" "$work/neato.txt")
-\`\`\`
+$coverage_rest
 DOC
 if [ -s "$work/missed.txt" ]; then cat "$work/missed.txt" >&2; fi
 echo "wrote $repo/docs/RESULTS_CALIBRATION.md"

@@ -122,7 +122,7 @@ the measure is how far overlapping scans lie apart in the odom frame (robust poi
 mm, mean over the pairs, the pair count in brackets), over all pairs and over pairs with a scan
 turning at 0.3 rad/s or faster. deskew_bag chooses the overlapping pairs of each variant by itself
 (pairs that overlap as placed), so the counts differ: /scan placed raw at its late stamps overlaps in
-far fewer pairs. Corrected with the calibration, the scans must never agree less than raw ones (where
+fewer pairs. Corrected with the calibration, the scans must never agree less than raw ones (where
 they would, deskew_calibrate must refuse). Two recordings turn at most 0.28-0.34 rad/s: deskew_calibrate
 refuses them (with \`--turning-rate 0.15\` it still cannot tell their beam order, or finds their
 odometry, 4 Hz, too coarse for the offset).
