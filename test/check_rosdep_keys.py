@@ -5,7 +5,7 @@
 A key resolves when a package of that name is released in rosdistro's noetic/distribution.yaml (and is
 not end-of-life there), or when rosdep/base.yaml or rosdep/python.yaml names Ubuntu focal packages for it.
 
-With --rosdistro DIR or $LIDAR_DESKEW_ROSDISTRO (a snapshot of ros/rosdistro: DIR/rosdep/base.yaml, DIR/rosdep/python.yaml,
+With --rosdistro DIR, $LIDAR_DESKEW_ROSDISTRO or ../shared/data/rosdistro beside the repo (a snapshot of ros/rosdistro: DIR/rosdep/base.yaml, DIR/rosdep/python.yaml,
 DIR/noetic/distribution.yaml) every key is resolved in those files, and KNOWN below is checked against
 them. Without one, every key must be in KNOWN: what these files said for our keys when we last looked
 (a key added to package.xml fails here until it is checked against a snapshot and added).
@@ -122,8 +122,14 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("package_xml")
     parser.add_argument("--rosdistro", default=os.environ.get("LIDAR_DESKEW_ROSDISTRO") or None,
-                        help="snapshot of ros/rosdistro (rosdep/, noetic/); default $LIDAR_DESKEW_ROSDISTRO")
+                        help="snapshot of ros/rosdistro (rosdep/, noetic/); default $LIDAR_DESKEW_ROSDISTRO, else ../shared/data/rosdistro beside the repo")
     args = parser.parse_args()
+    if not args.rosdistro:
+        # shared/data/rosdistro beside the repo (the project's shared data), when it has a snapshot
+        beside = os.path.join(os.path.dirname(os.path.realpath(args.package_xml)), "..", "shared", "data",
+                              "rosdistro")
+        if os.path.isfile(os.path.join(beside, "noetic", "distribution.yaml")):
+            args.rosdistro = os.path.normpath(beside)
 
     keys = package_keys(args.package_xml)
     snapshot = load_snapshot(args.rosdistro) if args.rosdistro else None
