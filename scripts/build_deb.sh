@@ -41,7 +41,7 @@ source "$repo/scripts/compiler_cache.sh"
 if [ ! -f "$build/CMakeCache.txt" ] || [ "$script" -nt "$build/CMakeCache.txt" ] ||
   [ "$repo/scripts/compiler_cache.sh" -nt "$build/CMakeCache.txt" ]; then
   cmake -S "$work/src/lidar_deskew" -B "$build" -DCMAKE_BUILD_TYPE=Release -DCMAKE_INSTALL_PREFIX=/usr \
-    -DCATKIN_DEVEL_PREFIX="$work/devel" "${compiler_cache_args[@]}" \
+    -DCATKIN_DEVEL_PREFIX="$work/devel" "${compiler_cache_args[@]}" -DLIDAR_DESKEW_WERROR=ON \
     -DCATKIN_BUILD_BINARY_PACKAGE=ON -DCATKIN_ENABLE_TESTING=OFF -DCMAKE_DISABLE_FIND_PACKAGE_benchmark=ON \
     >"$work/configure.log" || { cat "$work/configure.log" >&2; exit 1; }
 fi

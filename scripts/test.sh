@@ -2,13 +2,13 @@
 # The whole test suite: installs what is missing, builds with catkin_make (tests included), installs,
 # and runs every test through CTest (the test debian_package builds the Debian package, overlapping the
 # tests that mostly wait on roscore). Ends with CTest's summary; non-zero on
-# any failure.
+# any failure. Warnings are errors here (LIDAR_DESKEW_WERROR, off by default for users).
 set -euo pipefail
 export PATH=/usr/bin:/bin:$PATH
 export PYTHONNOUSERSITE=1
 repo=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 bash "$repo/scripts/install_deps.sh"
-bash "$repo/scripts/build_workspace.sh" -DCATKIN_ENABLE_TESTING=ON
+bash "$repo/scripts/build_workspace.sh" -DCATKIN_ENABLE_TESTING=ON -DLIDAR_DESKEW_WERROR=ON
 cd "$repo/.build/ws"
 catkin_make -j"${LIDAR_DESKEW_JOBS:-2}" tests >/dev/null
 cd build

@@ -13,7 +13,8 @@ rm -rf "$work"
 mkdir -p "$work/src"
 ln -s "$repo" "$work/src/lidar_deskew"
 cmake -S "$work/src/lidar_deskew" -B "$work/build/lidar_deskew" -DCMAKE_BUILD_TYPE=Release \
-  -DCATKIN_DEVEL_PREFIX="$work/devel" -DCATKIN_ENABLE_TESTING=OFF "${compiler_cache_args[@]}" >/dev/null
+  -DCATKIN_DEVEL_PREFIX="$work/devel" -DCATKIN_ENABLE_TESTING=OFF -DLIDAR_DESKEW_WERROR=ON \
+  "${compiler_cache_args[@]}" >/dev/null
 cmake --build "$work/build/lidar_deskew" --target lidar_deskew_core -j2 >/dev/null
 test -n "$(find "$work/devel" "$work/build" -name 'liblidar_deskew_core.so*' -print -quit)"
 echo "plain CMake configure + build of lidar_deskew_core: ok"

@@ -12,7 +12,7 @@
 #include <string>
 
 #include "lidar_deskew/bag/bag_deskew.h"
-#include "lidar_deskew/eval/consistency.h"
+#include "lidar_deskew/eval/pair_consistency.h"
 #include "lidar_deskew/eval/shape_consistency.h"
 
 namespace {

@@ -22,7 +22,7 @@
 
 #include "lidar_deskew/bag/bag_calibrate.h"
 #include "lidar_deskew/bag/bag_deskew.h"
-#include "lidar_deskew/eval/consistency.h"
+#include "lidar_deskew/eval/pair_consistency.h"
 #include "lidar_deskew/ros/conversions.h"
 #include "lidar_deskew/sim/sim_bag.h"
 #include "support/tf_tree.h"

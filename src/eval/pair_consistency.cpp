@@ -1,4 +1,4 @@
-#include "lidar_deskew/eval/consistency.h"
+#include "lidar_deskew/eval/pair_consistency.h"
 
 #include <rosbag/bag.h>
 #include <rosbag/view.h>
