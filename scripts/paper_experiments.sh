@@ -4,20 +4,98 @@
 # laser_geometry; the main tables are filled by scripts/quoted_numbers.py, which the test
 # quoted_numbers reruns), Fig. 4-style figures, then linear (tf2's) against twist (the default)
 # interpolation at tf 10, 20 and 50 Hz, on motion that changes between samples, and with noisy
-# odometry. The page shows the key rows; the TSVs hold every row. Work files go to
-# .build/experiments/ (about 6 min).
-#   bash scripts/paper_experiments.sh
+# odometry, and with odometry as robots produce it (--odom-rate, --odom-jitter, --odom-ticks,
+# --odom-delivery). The page shows the key rows; the TSVs hold every row. Work files go to
+# .build/experiments/ (about 7 min). --odometry-timing reruns only the last table (about 1 min, with the
+# workspace built) and puts it into the present docs/RESULTS.md.
+#   bash scripts/paper_experiments.sh [--odometry-timing]
 set -euo pipefail
 export PATH=/usr/bin:/bin:$PATH
 export PYTHONNOUSERSITE=1
 repo=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 
-bash "$repo/scripts/install_deps.sh" >/dev/null
-bash "$repo/scripts/build_workspace.sh" >/dev/null
+only_timing=false
+[ "${1:-}" = "--odometry-timing" ] && only_timing=true
+if ! $only_timing; then
+  bash "$repo/scripts/install_deps.sh" >/dev/null
+  bash "$repo/scripts/build_workspace.sh" >/dev/null
+fi
 bin="$repo/.build/ws/devel/lib/lidar_deskew"
 work="$repo/.build/experiments"
 rm -rf "$work"
 mkdir -p "$work" "$repo/docs/figures" "$repo/results"
+printf 'interpolation: linear\n' > "$work/linear.yaml"
+printf 'interpolation: twist\n' > "$work/twist.yaml"
+# cell ROW COLUMN: "RMS / max" of a deskew_metrics row's column; tsv ROW COLUMN: the same, tab-separated.
+cell() { echo "$1" | awk -F'|' -v c="$2" '{split($c, v, " / "); gsub(/ /, "", v[1]); gsub(/ /, "", v[3]); print v[1] " / " v[3]}'; }
+tsv() { cell "$1" "$2" | sed 's| / |\t|'; }
+measures="cloud_linear_rms\tcloud_linear_max\tcloud_twist_rms\tcloud_twist_max\tlaser_geometry_rms\tlaser_geometry_max\tscan_linear_rms\tscan_linear_max\tscan_twist_rms\tscan_twist_max"
+
+# Odometry as robots produce it, noise off, seeds 1-3 (docs/TESTING.md): the page's section in
+# $work/odometry_timing.md, every run in results/paper_odometry_timing.tsv.
+timing_scenarios="LDS-01/normal/arc ILD26TRI/normal/arc ILD26TRI/varying/varying"
+timing_tsv="$repo/results/paper_odometry_timing.tsv"
+printf "scenario\todometry\tseed\t$measures\n" > "$timing_tsv"
+for scenario in $timing_scenarios; do
+  while IFS='|' read -r label flags; do
+    seeds="1 2 3"
+    [ -z "$flags" ] && seeds=1
+    for seed in $seeds; do
+      bag="$work/timing.bag" truth="$work/timing.truth"
+      # shellcheck disable=SC2086
+      "$bin/deskew_simulate" --scenario "$scenario" --bag "$bag" --truth "$truth" --odom-seed "$seed" $flags
+      linear=$("$bin/deskew_metrics" "$bag" "$truth" --markdown --params "$work/linear.yaml")
+      twist=$("$bin/deskew_metrics" "$bag" "$truth" --markdown --params "$work/twist.yaml")
+      printf "%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\n" "$scenario" "$label" "$seed" "$(tsv "$linear" 6)" \
+        "$(tsv "$twist" 6)" "$(tsv "$twist" 8)" "$(tsv "$linear" 7)" "$(tsv "$twist" 7)" >> "$timing_tsv"
+      rm -f "$bag" "$truth"
+    done
+  done <<'CLASSES'
+50 Hz|
+stamps ±5 ms|--odom-jitter 0.005
+5-11 Hz|--odom-rate 5:11
+ticks 1 mm / 0.235 m|--odom-ticks 0.001:0.235
+late 50 ms, bursts 3|--odom-delivery late:0.05 --odom-delivery burst:3
+5-7 Hz, ±5 ms, ticks, late, bursts 2|--odom-rate 5:7 --odom-jitter 0.005 --odom-ticks 0.001:0.235 --odom-delivery late:0.03 --odom-delivery burst:2
+CLASSES
+done
+# One row per class, one cell per scenario: mean cloud RMS over the seeds, linear / twist / laser_geometry.
+timing_rows=$(awk -F'\t' 'NR > 1 {
+    if (!($2 in seen)) { seen[$2] = 1; order[++classes] = $2 }
+    n[$2, $1]++; linear[$2, $1] += $4; twist[$2, $1] += $6; lg[$2, $1] += $8
+    if (!($1 in known)) { known[$1] = 1; scenario[++scenarios] = $1 }
+  } END {
+    for (c = 1; c <= classes; c++) {
+      k = order[c]; line = "| " k " |"
+      for (s = 1; s <= scenarios; s++) {
+        key = k SUBSEP scenario[s]
+        line = line sprintf(" %.2f / **%.2f** / %.2f |", linear[key] / n[key], twist[key] / n[key], lg[key] / n[key])
+      }
+      print line
+    } }' "$timing_tsv")
+cat > "$work/odometry_timing.md" <<MD
+### Odometry as robots produce it
+
+\`deskew_simulate --odom-*\`, noise off; cloud RMS mm, linear / **twist** / laser_geometry, mean of seeds
+1-3 (max: \`results/paper_odometry_timing.tsv\`). Late records: no change (tf read first).
+
+| odometry | LDS-01 arc | ILD26TRI arc | ILD26TRI varying |
+| --- | --- | --- | --- |
+$timing_rows
+MD
+if $only_timing; then
+  # Into the present page: the section replaced (or put before the figures).
+  /usr/bin/python3 -s - "$repo/docs/RESULTS.md" "$work/odometry_timing.md" <<'PY'
+import re, sys
+page, section = open(sys.argv[1]).read(), open(sys.argv[2]).read()
+head = "### Odometry as robots produce it\n"
+start = page.find(head) if head in page else page.index("## Figures\n")
+page = page[:start] + section + "\n" + page[page.index("## Figures\n"):]
+open(sys.argv[1], "w").write(page)
+PY
+  echo "wrote the odometry section of docs/RESULTS.md and results/paper_odometry_timing.tsv"
+  exit 0
+fi
 
 # The figures: the scan in the middle of each recording, noise on.
 while read -r scenario; do
@@ -31,12 +109,6 @@ done < <("$bin/deskew_simulate" --list-paper)
 /usr/bin/python3 -s "$repo/scripts/plot_paper_figures.py" "$work" "$repo/docs/figures"
 
 # Interpolation between tf samples: the same scans scored with interpolation linear and twist.
-printf 'interpolation: linear\n' > "$work/linear.yaml"
-printf 'interpolation: twist\n' > "$work/twist.yaml"
-# cell ROW COLUMN: "RMS / max" of a deskew_metrics row's column; tsv ROW COLUMN: the same, tab-separated.
-cell() { echo "$1" | awk -F'|' -v c="$2" '{split($c, v, " / "); gsub(/ /, "", v[1]); gsub(/ /, "", v[3]); print v[1] " / " v[3]}'; }
-tsv() { cell "$1" "$2" | sed 's| / |\t|'; }
-measures="cloud_linear_rms\tcloud_linear_max\tcloud_twist_rms\tcloud_twist_max\tlaser_geometry_rms\tlaser_geometry_max\tscan_linear_rms\tscan_linear_max\tscan_twist_rms\tscan_twist_max"
 rates_tsv="$repo/results/paper_rates.tsv"
 printf "scenario\tnoise\ttf_hz\t$measures\n" > "$rates_tsv"
 rate_rows=""
@@ -52,9 +124,9 @@ for noise in off on; do
       twist=$("$bin/deskew_metrics" "$bag" "$truth" --markdown --params "$work/twist.yaml")
       printf "%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\n" "$scenario" "$noise" "$rate" "$(tsv "$linear" 6)" "$(tsv "$twist" 6)" \
         "$(tsv "$twist" 8)" "$(tsv "$linear" 7)" "$(tsv "$twist" 7)" >> "$rates_tsv"
-      # The page: noise off, where the motion is not a line or a spin about the laser.
-      case "$noise $scenario" in
-        "off "*/arc | "off "*/varying)
+      # The page: noise off, 10 and 50 Hz, where the motion is not a line or a spin about the laser.
+      case "$noise $rate $scenario" in
+        "off 10 "*/arc | "off 10 "*/varying | "off 50 "*/arc | "off 50 "*/varying)
           rate_rows+="| $scenario | $rate | $(cell "$linear" 6) | **$(cell "$twist" 6)** | $(cell "$twist" 8) | $(cell "$linear" 7) | **$(cell "$twist" 7)** |"$'\n' ;;
       esac
       rm -f "$bag" "$truth"
@@ -154,7 +226,7 @@ default) integrates each interval's body twist on SE(3), exact for constant velo
 (\`core::TwistMotion\`). The same bag scored both ways, RMS / max mm, noise off, the motions that are
 not a line or a spin (where both are exact); laser_geometry from the twist run. ILD26TRI/varying
 flips its turn every 40 ms: tf at 10 or 20 Hz samples that zigzag too sparsely for any interpolation;
-at 50 Hz the flips fall on samples. Noise on and every scenario: \`results/paper_rates.tsv\`.
+at 50 Hz the flips fall on samples. 20 Hz, noise on, all: \`results/paper_rates.tsv\`.
 
 | scenario | tf Hz | cloud, linear | cloud, twist | laser_geometry | scan, linear | scan, twist |
 | --- | ---: | --- | --- | --- | --- | --- |
@@ -177,6 +249,8 @@ odometry. Mean RMS over seeds 1-5 / largest max, mm; each seed: \`results/paper_
 | scenario | odometry noise R | floor | cloud, linear | cloud, twist | laser_geometry | scan, linear | scan, twist |
 | --- | ---: | --- | --- | --- | --- | --- | --- |
 $odom_rows
+
+$(cat "$work/odometry_timing.md")
 
 ## Figures
 

@@ -10,7 +10,8 @@
 //   deskew_simulate --scenario UTM-30LX/high/arc --bag out.bag --truth out.truth [--noise] [--seed N]
 //                   [--tf-rate HZ] [--tf-margin S] [--clockwise] [--duration S] [--stamp-error S |
 //                   --stamp-at-end] [--reversed] [--time-increment-factor F] [--zero-scan-time]
-//                   [--odom-noise R [--odom-seed N]] [--odom-yaw-scale F]
+//                   [--odom-noise R [--odom-seed N]] [--odom-yaw-scale F] [--odom-jitter S]
+//                   [--odom-rate LO:HI] [--odom-ticks M:B] [--odom-delivery late:S|burst:N]...
 //   deskew_simulate --cloud-scenario VLP16/rough/arc --convention velodyne_first --bag out.bag
 //                   --truth out.truth [--noise] [--seed N] [--tf-rate HZ] [--duration S] [--latency S]
 #include <cmath>
@@ -18,6 +19,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <exception>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -36,7 +38,8 @@ int usage(const char* program) {
       "          [--noise] [--seed N] [--tf-rate HZ]\n"
       "          [--tf-margin S] [--clockwise] [--duration S] [--stamp-error S | --stamp-at-end]\n"
       "          [--reversed] [--time-increment-factor F] [--zero-scan-time]\n"
-      "          [--odom-noise R [--odom-seed N]] [--odom-yaw-scale F]\n"
+      "          [--odom-noise R [--odom-seed N]] [--odom-yaw-scale F] [--odom-jitter S]\n"
+      "          [--odom-rate LO:HI] [--odom-ticks M:B] [--odom-delivery late:S|burst:N]...\n"
       "       %s --cloud-scenario NAME --convention NAME --bag OUT.bag --truth OUT.truth [--noise]\n"
       "          [--seed N] [--tf-rate HZ] [--duration S] [--latency S]\n"
       "  --list              the planar scenarios (LaserScan on /scan): the paper's, calibration's, smooth\n"
@@ -57,8 +60,17 @@ int usage(const char* program) {
       "  --tf-margin S       odometry from S before the first scan to S after the last (default 0.1)\n"
       "  --odom-noise R      odometry (/tf odom -> base_link, /odom) off by R relative per 20 ms step in\n"
       "                      x, y and yaw, a random walk away from the truth (default 0: perfect)\n"
-      "  --odom-seed N       seed of the odometry noise (default 1; --seed is the range noise's)\n"
+      "  --odom-seed N       seed of the odometry noise and timing (default 1; --seed is the range's)\n"
       "  --odom-yaw-scale F  odometry reports F x the true rotation (default 1; with or without noise)\n"
+      "odometry samples as robots produce them (planar only; recorded in the truth file):\n"
+      "  --odom-jitter S     each stamp off the sample's true time by a uniform error in [-S, S]; the\n"
+      "                      pose stays the true time's (a driver stamping on receipt)\n"
+      "  --odom-rate LO:HI   irregular: each next sample 1/HI to 1/LO s (uniform) after the last\n"
+      "                      (instead of --tf-rate's grid)\n"
+      "  --odom-ticks M:B    diff-drive encoders: each wheel's travel in whole ticks of M m, wheel base\n"
+      "                      B m; poses integrated from the tick counts (heading steps M / B rad)\n"
+      "  --odom-delivery late:S   recorded S s after the stamp\n"
+      "  --odom-delivery burst:N  recorded N samples at a time, at the last one's record time\n"
       "timing faults of the /scan messages (planar scenarios only; recorded in the truth file):\n"
       "  --stamp-error S     header.stamp = true time of the earliest beam + S (time_offset = -S)\n"
       "  --stamp-at-end      stamped at the latest beam: S = (beams - 1) * true time_increment\n"
@@ -140,6 +152,37 @@ int main(int argc, char** argv) {
     } else if (arg == "--odom-seed" && has_value) {
       options.odom_noise_seed = static_cast<unsigned>(std::strtoul(argv[++a], nullptr, 10));
       odom_noise_given = true;
+    } else if (arg == "--odom-jitter" && has_value) {
+      options.odom_timing.jitter = std::atof(argv[++a]);
+      odom_noise_given = true;
+    } else if ((arg == "--odom-rate" || arg == "--odom-ticks") && has_value) {
+      double first = 0.0, second = 0.0;
+      char end = 0;
+      if (std::sscanf(argv[++a], "%lf:%lf%c", &first, &second, &end) != 2) {
+        std::fprintf(stderr, "%s takes two numbers A:B, not '%s'\n", arg.c_str(), argv[a]);
+        return 2;
+      }
+      if (arg == "--odom-rate") {
+        options.odom_timing.rate_min = first;
+        options.odom_timing.rate_max = second;
+      } else {
+        options.odom_timing.tick = first;
+        options.odom_timing.wheel_base = second;
+      }
+      odom_noise_given = true;
+    } else if (arg == "--odom-delivery" && has_value) {
+      const std::string value = argv[++a];
+      char* end = nullptr;
+      if (value.rfind("late:", 0) == 0) {
+        options.odom_timing.late = std::strtod(value.c_str() + 5, &end);
+      } else if (value.rfind("burst:", 0) == 0) {
+        options.odom_timing.burst = static_cast<int>(std::strtol(value.c_str() + 6, &end, 10));
+      }
+      if (end == nullptr || *end != '\0' || end == value.c_str() + value.find(':') + 1) {
+        std::fprintf(stderr, "--odom-delivery takes late:S or burst:N, not '%s'\n", value.c_str());
+        return 2;
+      }
+      odom_noise_given = true;
     } else if (arg == "--stamp-error" && has_value) {
       options.timing_fault.stamp_error = std::atof(argv[++a]);
       stamp_error_given = any_fault = true;
@@ -173,11 +216,10 @@ int main(int argc, char** argv) {
     return 2;
   }
   if (cloud && (clockwise || tf_margin_given || odom_noise_given)) {
-    std::fprintf(
-        stderr,
-        "deskew_simulate: --clockwise, --tf-margin, --odom-noise and --odom-yaw-scale are for planar "
-        "scenarios "
-        "(--scenario), not --cloud-scenario\n");
+    std::fprintf(stderr,
+                 "deskew_simulate: --clockwise, --tf-margin and the --odom-* options are for planar "
+                 "scenarios "
+                 "(--scenario), not --cloud-scenario\n");
     return 2;
   }
   if (!cloud && !convention_name.empty()) {
@@ -198,6 +240,12 @@ int main(int argc, char** argv) {
   }
   if (!(options.odom_yaw_scale > 0.0) || !std::isfinite(options.odom_yaw_scale)) {
     std::fprintf(stderr, "--odom-yaw-scale must be finite and > 0\n");
+    return 2;
+  }
+  try {
+    options.odom_timing.validate();
+  } catch (const std::invalid_argument& error) {
+    std::fprintf(stderr, "deskew_simulate: %s\n", error.what());
     return 2;
   }
   if (cloud && any_fault) {

@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <stdexcept>
+#include <string>
 
 #include "truth_text.h"
 
@@ -254,12 +255,42 @@ void writeTruth(const Truth& truth, const std::string& path) {
   out << "odom_noise_seed " << truth.odom_noise_seed << "\n";
   if (truth.odom_yaw_scale != 1.0)
     out << "odom_yaw_scale " << truth.odom_yaw_scale << "\n";
+  const OdometryTiming& timing = truth.odom_timing;
+  if (timing.jitter != 0.0)
+    out << "odom_jitter " << timing.jitter << "\n";
+  if (timing.rate_min != 0.0)
+    out << "odom_rate " << timing.rate_min << " " << timing.rate_max << "\n";
+  if (timing.tick != 0.0)
+    out << "odom_ticks " << timing.tick << " " << timing.wheel_base << "\n";
+  if (timing.late != 0.0)
+    out << "odom_late " << timing.late << "\n";
+  if (timing.burst != 1)
+    out << "odom_burst " << timing.burst << "\n";
   truth_text::writeMotion(out, truth.start, truth.pieces);
   for (const Segment& segment : truth.world.segments()) {
     out << "wall " << segment.a.x() << " " << segment.a.y() << " " << segment.b.x() << " " << segment.b.y()
         << "\n";
   }
   truth_text::finish(out, path);
+}
+
+void OdometryTiming::validate() const {
+  const auto check = [](double value, const char* name) {
+    if (!(value >= 0.0) || !std::isfinite(value))
+      throw std::invalid_argument(std::string("odometry ") + name + ": must be finite and >= 0");
+  };
+  check(jitter, "jitter");
+  check(rate_min, "rate_min");
+  check(rate_max, "rate_max");
+  check(tick, "tick");
+  check(wheel_base, "wheel_base");
+  check(late, "late");
+  if ((rate_min == 0.0) != (rate_max == 0.0) || rate_min > rate_max)
+    throw std::invalid_argument("odometry rate: give 0 < LO <= HI Hz (or neither)");
+  if (tick > 0.0 && !(wheel_base > 0.0))
+    throw std::invalid_argument("odometry ticks: need a wheel base > 0 m");
+  if (burst < 1)
+    throw std::invalid_argument("odometry burst: must be >= 1 sample");
 }
 
 Truth readTruth(const std::string& path) {
@@ -303,6 +334,17 @@ Truth readTruth(const std::string& path) {
       return static_cast<bool>(fields >> truth.odom_noise_seed);
     if (key == "odom_yaw_scale")
       return static_cast<bool>(fields >> truth.odom_yaw_scale);
+    OdometryTiming& timing = truth.odom_timing;
+    if (key == "odom_jitter")
+      return static_cast<bool>(fields >> timing.jitter);
+    if (key == "odom_rate")
+      return static_cast<bool>(fields >> timing.rate_min >> timing.rate_max);
+    if (key == "odom_ticks")
+      return static_cast<bool>(fields >> timing.tick >> timing.wheel_base);
+    if (key == "odom_late")
+      return static_cast<bool>(fields >> timing.late);
+    if (key == "odom_burst")
+      return static_cast<bool>(fields >> timing.burst);
     if (key == "wall") {
       double ax, ay, bx, by;
       const bool ok = static_cast<bool>(fields >> ax >> ay >> bx >> by);

@@ -23,6 +23,7 @@ struct Recorded {
   std::vector<core::TimeNs> scan_record_times;
   std::vector<core::TimeNs> tf_times;  // [ns] stamps of odom -> base_link
   std::vector<Pose2> tf_poses;         // odom -> base_link, its yaw from the quaternion
+  std::vector<core::TimeNs> tf_record_times;
   std::vector<nav_msgs::Odometry> odometry;
   std::vector<core::TimeNs> record_times;  // of every message, in file order
   std::size_t latched_tf_static = 0;       // /tf_static messages whose connection latches
@@ -49,6 +50,7 @@ Recorded readBag(const std::string& path) {
       const tf2_msgs::TFMessage::ConstPtr transforms = message.instantiate<tf2_msgs::TFMessage>();
       for (const auto& transform : transforms->transforms) {
         recorded.tf_times.push_back(static_cast<core::TimeNs>(transform.header.stamp.toNSec()));
+        recorded.tf_record_times.push_back(static_cast<core::TimeNs>(message.getTime().toNSec()));
         const auto& q = transform.transform.rotation;
         recorded.tf_poses.push_back({transform.transform.translation.x, transform.transform.translation.y,
                                      2.0 * std::atan2(q.z, q.w)});
@@ -256,6 +258,211 @@ TEST(SimBag, InvalidOptionsAreRefused) {
   EXPECT_THROW(
       writeSimulationBag(findScenario("LDS-01/normal/turns"), options, bag_path, bag_path + ".truth"),
       std::invalid_argument);
+}
+
+// Odometry as robots produce it (OdometryTiming), on 1 s of the LDS-01 arc (5 Hz scans; 1.5 m/s, 2 rad/s)
+// with perfect odometry, so that every pose is checked against the true motion.
+struct OdometryBag {
+  Scenario scenario;
+  SimBagOptions options;
+  Recorded recorded;
+  Truth truth;
+  double seconds(core::TimeNs time) const { return core::nsToSeconds(time - options.epoch); }
+};
+
+OdometryBag writeOdometryBag(const OdometryTiming& timing, const std::string& label, double duration = 1.0,
+                             unsigned seed = 4) {
+  OdometryBag result;
+  result.scenario = findScenario("LDS-01/normal/arc");
+  result.scenario.duration = duration;
+  result.options.odom_timing = timing;
+  result.options.odom_noise_seed = seed;
+  const std::string stem = ::testing::TempDir() + "/sim_odom_" + label;
+  writeSimulationBag(result.scenario, result.options, stem + ".bag", stem + ".truth");
+  result.recorded = readBag(stem + ".bag");
+  result.truth = readTruth(stem + ".truth");
+  std::remove((stem + ".bag").c_str());
+  std::remove((stem + ".truth").c_str());
+  return result;
+}
+
+// Stamps jittered by up to 5 ms at 50 Hz: sample k is at its grid time (one more sample at each end,
+// 20 ms before -0.1 s), its stamp within 5 ms of it (and some near 5 ms), its pose the truth at the
+// grid time, not at the stamp.
+TEST(SimBagOdometry, StampJitter) {
+  OdometryTiming timing;
+  timing.jitter = 0.005;
+  const OdometryBag bag = writeOdometryBag(timing, "jitter");
+  const Recorded& recorded = bag.recorded;
+  ASSERT_EQ(recorded.tf_times.size(), 73u);  // -0.12 .. 1.32 s: 5 scans of 0.2 s, 0.1 s margins, +-1
+  // Stamps 20 ms apart jittered by 5 ms stay in order.
+  ASSERT_TRUE(std::is_sorted(recorded.tf_times.begin(), recorded.tf_times.end()));
+  const PiecewiseTrajectory trajectory = bag.scenario.trajectory();
+  double largest_error = 0.0, largest_offset = 0.0;
+  for (std::size_t k = 0; k < recorded.tf_times.size(); ++k) {
+    const double t = -0.12 + static_cast<double>(k) / 50.0;
+    const double stamp = bag.seconds(recorded.tf_times[k]);
+    EXPECT_LE(std::abs(stamp - t), 0.005 + 1e-9) << k;
+    largest_error = std::max(largest_error, std::abs(stamp - t));
+    const Pose2 truth = trajectory.pose(t);
+    EXPECT_NEAR(recorded.tf_poses[k].x, truth.x, 1e-12) << k;
+    EXPECT_NEAR(recorded.tf_poses[k].y, truth.y, 1e-12) << k;
+    const Pose2 at_stamp = trajectory.pose(stamp);
+    largest_offset = std::max(largest_offset, std::hypot(at_stamp.x - truth.x, at_stamp.y - truth.y));
+    EXPECT_EQ(recorded.tf_record_times[k], recorded.tf_times[k]);  // recorded at once
+  }
+  std::printf("jitter 5 ms: largest stamp error %.2f ms, pose at the stamp off by up to %.1f mm\n",
+              1e3 * largest_error, 1e3 * largest_offset);
+  EXPECT_GT(largest_error, 0.004);
+  EXPECT_GT(largest_offset, 0.006);  // 1.5 m/s x 4 ms
+  EXPECT_EQ(bag.truth.odom_timing.jitter, 0.005);
+}
+
+// 5 to 11 Hz over 4 s: every interval in [1/11, 1/5] s, both ends of the range reached, the poses the
+// truth at the stamps, the stamps covering all scans.
+TEST(SimBagOdometry, IrregularRate) {
+  OdometryTiming timing;
+  timing.rate_min = 5.0;
+  timing.rate_max = 11.0;
+  const OdometryBag bag = writeOdometryBag(timing, "rate", 4.0);
+  const Recorded& recorded = bag.recorded;
+  ASSERT_GT(recorded.tf_times.size(), 25u);
+  ASSERT_EQ(recorded.odometry.size(), recorded.tf_times.size());
+  const PiecewiseTrajectory trajectory = bag.scenario.trajectory();
+  double shortest = 1.0, longest = 0.0;
+  for (std::size_t k = 0; k < recorded.tf_times.size(); ++k) {
+    const double stamp = bag.seconds(recorded.tf_times[k]);
+    const Pose2 truth = trajectory.pose(stamp);
+    EXPECT_NEAR(recorded.tf_poses[k].x, truth.x, 1e-6) << k;  // the stamp is the time rounded to 1 ns
+    EXPECT_NEAR(recorded.tf_poses[k].y, truth.y, 1e-6) << k;
+    if (k == 0)
+      continue;
+    const double interval = stamp - bag.seconds(recorded.tf_times[k - 1]);
+    EXPECT_GE(interval, 1.0 / 11.0 - 2e-9) << k;
+    EXPECT_LE(interval, 1.0 / 5.0 + 2e-9) << k;
+    shortest = std::min(shortest, interval);
+    longest = std::max(longest, interval);
+  }
+  std::printf("5-11 Hz: %zu samples, intervals %.1f to %.1f ms\n", recorded.tf_times.size(), 1e3 * shortest,
+              1e3 * longest);
+  EXPECT_LT(shortest, 1.0 / 11.0 + 0.015);
+  EXPECT_GT(longest, 1.0 / 5.0 - 0.015);
+  EXPECT_LE(recorded.tf_times.front(),
+            static_cast<core::TimeNs>(recorded.scans.front().header.stamp.toNSec()));
+  const double last_end = bag.seconds(recorded.scans.back().header.stamp.toNSec()) + 0.2;
+  EXPECT_GE(bag.seconds(recorded.tf_times.back()), last_end);
+  EXPECT_EQ(bag.truth.odom_timing.rate_min, 5.0);
+  EXPECT_EQ(bag.truth.odom_timing.rate_max, 11.0);
+}
+
+// Encoders of 1 mm ticks on a 0.16 m wheel base: between samples, the heading step is an integer
+// number of 1 mm / 0.16 m and the arc length half an integer number of ticks (the two of the same
+// parity: nl + nr and nr - nl); the heading never more than two ticks' worth (2 mm / 0.16 m) off the
+// truth; /odom's twist the interval's ticks over its duration.
+TEST(SimBagOdometry, EncoderTicks) {
+  OdometryTiming timing;
+  timing.tick = 0.001;
+  timing.wheel_base = 0.16;
+  const OdometryBag bag = writeOdometryBag(timing, "ticks");
+  const Recorded& recorded = bag.recorded;
+  ASSERT_EQ(recorded.tf_times.size(), 71u);  // -0.1 .. 1.3 s
+  const PiecewiseTrajectory trajectory = bag.scenario.trajectory();
+  const auto nearInteger = [](double x) { return std::abs(x - std::round(x)); };
+  double largest_residual = 0.0, largest_heading_error = 0.0;
+  for (std::size_t k = 1; k < recorded.tf_times.size(); ++k) {
+    const Pose2 step = recorded.tf_poses[k - 1].between(recorded.tf_poses[k]);
+    const double half = 0.5 * step.yaw;
+    const double arc =
+        std::copysign(std::hypot(step.x, step.y), step.x) * (half == 0.0 ? 1.0 : half / std::sin(half));
+    const double difference = step.yaw * 0.16 / 0.001;  // nr - nl
+    const double sum = 2.0 * arc / 0.001;               // nr + nl
+    largest_residual = std::max({largest_residual, nearInteger(difference), nearInteger(sum)});
+    EXPECT_EQ(std::lround(sum + difference) % 2, 0) << k;
+    const double t = bag.seconds(recorded.tf_times[k]);
+    const double dt = t - bag.seconds(recorded.tf_times[k - 1]);
+    EXPECT_NEAR(recorded.odometry[k].twist.twist.linear.x, arc / dt, 1e-6) << k;
+    EXPECT_NEAR(recorded.odometry[k].twist.twist.angular.z, step.yaw / dt, 1e-6) << k;
+    largest_heading_error =
+        std::max(largest_heading_error,
+                 std::abs(std::remainder(recorded.tf_poses[k].yaw - trajectory.pose(t).yaw, 2 * M_PI)));
+  }
+  std::printf(
+      "1 mm ticks, 0.16 m base: increments within %.1e of whole ticks, heading off by up to %.2f deg\n",
+      largest_residual, largest_heading_error * 180.0 / M_PI);
+  EXPECT_LT(largest_residual, 1e-6);
+  EXPECT_LE(largest_heading_error, 2.0 * 0.001 / 0.16 + 1e-9);
+  EXPECT_GT(largest_heading_error, 0.001);
+  EXPECT_EQ(bag.truth.odom_timing.tick, 0.001);
+  EXPECT_EQ(bag.truth.odom_timing.wheel_base, 0.16);
+}
+
+// Recorded 30 ms late in bursts of 3: /tf sample k recorded at the stamp of the last of its burst + 30
+// ms, its stamp still its grid time; the scans still recorded at their sweeps' ends.
+TEST(SimBagOdometry, LateAndBursty) {
+  OdometryTiming timing;
+  timing.late = 0.03;
+  timing.burst = 3;
+  const OdometryBag bag = writeOdometryBag(timing, "delivery");
+  const Recorded& recorded = bag.recorded;
+  const std::size_t n = recorded.tf_times.size();
+  ASSERT_EQ(n, 71u);
+  for (std::size_t k = 0; k < n; ++k) {
+    EXPECT_NEAR(bag.seconds(recorded.tf_times[k]), -0.1 + static_cast<double>(k) / 50.0, 1e-9) << k;
+    const std::size_t last = std::min(n - 1, 3 * (k / 3) + 2);
+    EXPECT_NEAR(static_cast<double>(recorded.tf_record_times[k] - recorded.tf_times[last]), 30e6, 2.0) << k;
+  }
+  for (std::size_t k = 0; k < recorded.scans.size(); ++k)
+    EXPECT_NEAR(bag.seconds(recorded.scan_record_times[k]), 0.2 * static_cast<double>(k + 1), 1e-9) << k;
+  EXPECT_EQ(bag.truth.odom_timing.late, 0.03);
+  EXPECT_EQ(bag.truth.odom_timing.burst, 3);
+}
+
+// All of it together with noise: the same seed writes the same bag; another seed another one.
+TEST(SimBagOdometry, SameSeedSameBag) {
+  OdometryTiming timing;
+  timing.jitter = 0.004;
+  timing.rate_min = 6.0;
+  timing.rate_max = 11.0;
+  timing.tick = 0.001;
+  timing.wheel_base = 0.235;
+  timing.late = 0.02;
+  timing.burst = 2;
+  const OdometryBag first = writeOdometryBag(timing, "seed_a", 1.0, 7);
+  const OdometryBag again = writeOdometryBag(timing, "seed_b", 1.0, 7);
+  const OdometryBag other = writeOdometryBag(timing, "seed_c", 1.0, 8);
+  EXPECT_EQ(first.recorded.tf_times, again.recorded.tf_times);
+  EXPECT_EQ(first.recorded.record_times, again.recorded.record_times);
+  ASSERT_EQ(first.recorded.tf_poses.size(), again.recorded.tf_poses.size());
+  for (std::size_t k = 0; k < first.recorded.tf_poses.size(); ++k) {
+    EXPECT_EQ(first.recorded.tf_poses[k].x, again.recorded.tf_poses[k].x);
+    EXPECT_EQ(first.recorded.tf_poses[k].yaw, again.recorded.tf_poses[k].yaw);
+  }
+  EXPECT_NE(first.recorded.tf_times, other.recorded.tf_times);
+  EXPECT_EQ(first.truth.odom_noise_seed, 7u);
+}
+
+TEST(SimBagOdometry, InvalidTimingIsRefused) {
+  const std::string bag_path = ::testing::TempDir() + "/sim_invalid_timing.bag";
+  const auto refused = [&](const OdometryTiming& timing) {
+    SimBagOptions options;
+    options.odom_timing = timing;
+    EXPECT_THROW(
+        writeSimulationBag(findScenario("LDS-01/normal/arc"), options, bag_path, bag_path + ".truth"),
+        std::invalid_argument);
+  };
+  OdometryTiming timing;
+  timing.rate_min = 11.0;
+  timing.rate_max = 5.0;
+  refused(timing);
+  timing = OdometryTiming();
+  timing.tick = 0.001;
+  refused(timing);
+  timing = OdometryTiming();
+  timing.burst = 0;
+  refused(timing);
+  timing = OdometryTiming();
+  timing.jitter = -0.001;
+  refused(timing);
 }
 
 }  // namespace

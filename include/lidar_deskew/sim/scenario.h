@@ -75,6 +75,33 @@ struct MountChange {
 
 /// What the metrics need to know about a simulated bag: the world, the true motion, the mount, and
 /// how the scans' timing was faulted.
+/// How a robot's odometry samples come (sim_bag's /tf odom -> base_link and /odom), beyond its noise:
+/// the defaults are the ideal 50 Hz grid, stamped at the true time and recorded at once.
+struct OdometryTiming {
+  /// [s] each stamp = the sample's true time + u, u uniform in [-jitter, +jitter] (a driver that stamps
+  /// on receipt); the pose stays the one at the true time.
+  double jitter = 0.0;
+  /// [Hz] irregular rate: each next sample a uniform random interval in [1 / rate_max, 1 / rate_min]
+  /// after the last; 0 = the regular tf_rate grid.
+  double rate_min = 0.0;
+  double rate_max = 0.0;
+  /// [m] wheel travel per encoder tick (0: not quantised) and [m] the wheel base of the differential
+  /// drive: each wheel's travel (s -/+ wheel_base / 2 * dyaw along the odometry's motion, from a random
+  /// encoder phase) counted in whole ticks, the pose integrated from the tick counts of each interval
+  /// (ds = tick (nl + nr) / 2, dyaw = tick (nr - nl) / wheel_base, exact along an arc).
+  double tick = 0.0;
+  double wheel_base = 0.0;
+  /// [s] each sample recorded this long after its stamp.
+  double late = 0.0;
+  /// Samples recorded in bursts of this many, all at the record time of the burst's last (1: none).
+  int burst = 1;
+
+  bool any() const { return jitter != 0.0 || rate_min != 0.0 || tick != 0.0 || late != 0.0 || burst != 1; }
+  /// Throws std::invalid_argument naming the field: a negative or non-finite value, rate_min > rate_max
+  /// or only one of them 0, tick without a positive wheel_base, burst < 1.
+  void validate() const;
+};
+
 struct Truth {
   std::string scenario;
   core::TimeNs epoch = 0;    ///< [ns] bag time of t = 0
@@ -97,6 +124,8 @@ struct Truth {
   unsigned odom_noise_seed = 0;
   /// The odometry's yaw increments x this (sim::NoisyOdometry's yaw_scale; 1 in files without it).
   double odom_yaw_scale = 1.0;
+  /// The odometry samples' timing, quantisation and delivery (none in files without it).
+  OdometryTiming odom_timing;
 
   PiecewiseTrajectory trajectory() const { return PiecewiseTrajectory(start, pieces); }
   /// The mount in force at bag time `time` [ns] (mount_change's from its time on).
@@ -114,7 +143,8 @@ struct Truth {
 /// The timing lines: "time_offset S" (= -stamp_error), "reversed 0|1", "time_increment_factor F",
 /// "zero_scan_time 0|1", "beam_period S", "sweep_period S"; absent in older files, which read as no
 /// fault and periods 0. The odometry lines "odom_noise R", "odom_noise_seed N"; absent: 0 (perfect);
-/// "odom_yaw_scale F" only when not 1.
+/// "odom_yaw_scale F" only when not 1; "odom_jitter S", "odom_rate LO HI", "odom_ticks M B",
+/// "odom_late S", "odom_burst N" only when set.
 /// "mount_change T X Y YAW" only when the mount changed.
 /// read throws std::runtime_error naming the file and line on malformed input.
 void writeTruth(const Truth& truth, const std::string& path);

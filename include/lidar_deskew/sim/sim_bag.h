@@ -33,6 +33,11 @@ struct SimBagOptions {
   /// The odometry's yaw increments x this (sim::NoisyOdometry's yaw_scale): 1 = as true; 0.4 = a robot
   /// whose odometry reports 0.4 of its rotation. Recorded in the truth when not 1.
   double odom_yaw_scale = 1.0;
+  /// The odometry samples as robots produce them (sim::OdometryTiming: stamp jitter, irregular rate,
+  /// encoder ticks, late or bursty recording; none by default), drawn from a generator seeded with
+  /// odom_noise_seed but apart from the noise's; recorded in the truth. Odometry then starts and ends
+  /// jitter further out so that the stamps still cover the scans.
+  OdometryTiming odom_timing;
   /// A recalibrated mount: /tf_static base -> laser written again, stamped and recorded at its time, and
   /// the scans whose last beam is at or after that time cast with it (recorded in the truth). Put the
   /// time between two sweeps (a sensor's blind sector, or between two beams) for a truth that holds
@@ -53,7 +58,7 @@ struct SimBagOptions {
 /// and the matching truth file at `truth_path` (the true motion, the fault, the true beam and sweep
 /// periods, the odometry noise and its seed).
 /// Throws on I/O errors, and std::invalid_argument for an invalid fault, a negative tf_margin or
-/// odom_noise.
+/// odom_noise, an invalid odom_timing.
 void writeSimulationBag(const sim::Scenario& scenario, const SimBagOptions& options,
                         const std::string& bag_path, const std::string& truth_path);
 
