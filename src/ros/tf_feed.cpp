@@ -388,25 +388,38 @@ Coverage TfFeed::coverage(core::TimeNs first, core::TimeNs last, std::string* wh
   }
 }
 
-std::string TfFeed::unknownFrame(const std::string& frame, const std::string& what) const {
+std::vector<std::string> TfFeed::sortedFrames() const {
   std::vector<std::string> frames;
   buffer_->_getFrameStrings(frames);
   std::sort(frames.begin(), frames.end());
-  const std::string closest = closestName(frame, frames);
-  std::string known;
-  for (const std::string& name : frames)
-    known += (known.empty() ? "" : ", ") + name;
-  return what + " '" + frame + "' is unknown to tf" +
-         (closest.empty() ? "" : " (did you mean '" + closest + "'?)") +
-         "; tf's frames: " + (known.empty() ? "none" : known);
+  return frames;
 }
 
-std::string TfFeed::whyNotCovered(core::TimeNs first, core::TimeNs last, core::TimeNs arrival) const {
-  const std::string chain = "tf " + fixed_frame_ + " -> " + base_frame_;
+std::string TfFeed::frameList() const {
+  std::string known;
+  for (const std::string& name : sortedFrames())
+    known += (known.empty() ? "" : ", ") + name;
+  return known.empty() ? "none" : known;
+}
+
+std::string TfFeed::unknownFrame(const std::string& frame, const std::string& what) const {
+  const std::string closest = closestName(frame, sortedFrames());
+  return what + " '" + frame + "' is unknown to tf" +
+         (closest.empty() ? "" : " (did you mean '" + closest + "'?)") + "; tf's frames: " + frameList();
+}
+
+std::string TfFeed::unknownChainFrame() const {
   if (!buffer_->_frameExists(fixed_frame_))
     return unknownFrame(fixed_frame_, "fixed_frame");
   if (!buffer_->_frameExists(base_frame_))
     return unknownFrame(base_frame_, "base_frame");
+  return "";
+}
+
+std::string TfFeed::whyNotCovered(core::TimeNs first, core::TimeNs last, core::TimeNs arrival) const {
+  const std::string chain = "tf " + fixed_frame_ + " -> " + base_frame_;
+  if (std::string unknown = unknownChainFrame(); !unknown.empty())
+    return unknown;
   const core::TimeNs cache = cache_time_.toNSec();
   for (const auto& [child, parents] : dynamic_parents_) {
     for (auto a = parents.begin(); a != parents.end(); ++a) {
@@ -475,18 +488,10 @@ std::string TfFeed::whyNoChain() const {
   } catch (const std::exception& thrown) {
     error = thrown.what();
   }
-  if (!buffer_->_frameExists(fixed_frame_))
-    return unknownFrame(fixed_frame_, "fixed_frame");
-  if (!buffer_->_frameExists(base_frame_))
-    return unknownFrame(base_frame_, "base_frame");
-  std::vector<std::string> frames;
-  buffer_->_getFrameStrings(frames);
-  std::sort(frames.begin(), frames.end());
-  std::string known;
-  for (const std::string& name : frames)
-    known += (known.empty() ? "" : ", ") + name;
+  if (std::string unknown = unknownChainFrame(); !unknown.empty())
+    return unknown;
   return "tf " + fixed_frame_ + " -> " + base_frame_ + ": the frames are not connected (" + error +
-         "); tf's frames: " + known;
+         "); tf's frames: " + frameList();
 }
 
 core::TimeNs TfFeed::newestChainTime() const {

@@ -169,6 +169,10 @@ class TfFeed {
   /// `what` ('fixed_frame', 'the scan frame') is unknown to tf: the text naming it, the closest known
   /// frame and tf's frames.
   std::string unknownFrame(const std::string& frame, const std::string& what) const;
+  /// unknownFrame() of fixed_frame, else of base_frame, when tf does not know it; "" when it knows both.
+  std::string unknownChainFrame() const;
+  std::vector<std::string> sortedFrames() const;  ///< tf's frames, sorted
+  std::string frameList() const;                  ///< "a, b, c" (sortedFrames), or "none"
   /// One /tf_static publication of a link.
   struct StaticLink {
     core::TimeNs stamp = 0;  ///< [ns] in force from here until the next publication's stamp
