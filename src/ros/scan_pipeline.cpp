@@ -336,7 +336,8 @@ void SweepPipeline<Processor>::add(const typename Message::ConstPtr& message, do
     dropInvalid(pending, "header.stamp is 0 (unset: the driver did not stamp it)");
     return;
   }
-  noteScanLine(pending);                        // before tf may jump onto it
+  if (waiting_ == Waiting::kRecording)  // the scans' time lines serve the offline wait only (onOtherLine):
+    noteScanLine(pending);              // live, no tf lookup per scan for them; before tf may jump onto it
   tf_.observeSweep(pending.prepared.latest());  // the time line tf must serve
   if (pending.line != tf_line_ && !tf_.jumpPending()) {
     // A time line of the scans reaching tf's newest is tf's (one scan stamped back, then the stream

@@ -191,7 +191,8 @@ class SweepPipeline {
   /// stamps went back by more than 1 s since), and lies more than 1 s behind tf's newest `newest` [ns]:
   /// tf still on the old time line, whose cache would serve it with the old motion.
   bool onOtherLine(const Pending& pending, core::TimeNs newest) const;
-  /// Gives the sweep its time line of the scans (a new one when its stamps go back by more than 1 s).
+  /// Waiting::kRecording: gives the sweep its time line of the scans (a new one when its stamps go back
+  /// by more than 1 s).
   void noteScanLine(Pending& pending);
   /// Waiting::kRecording's serveReady: each scan decided alone once tf's newest passes its end.
   void serveRecorded(double now);
