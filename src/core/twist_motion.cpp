@@ -172,11 +172,11 @@ std::deque<TwistMotion::Sample>::iterator TwistMotion::cachedAt(TimeNs time) {
                           [](const Sample& sample, TimeNs t) { return sample.time < t; });
 }
 
-bool TwistMotion::gatherSamples(const MotionSource& raw, TimeNs begin, TimeNs end) {
+bool TwistMotion::gatherSamples(const MotionSource& raw, TimeNs begin, TimeNs end, TimeNs look_ahead) {
   times_.clear();
   // appendSampleTimes gives times strictly inside; the margins include the samples bracketing the sweep.
   const TimeNs horizon = secondsToNs(kNoiseHorizon);
-  raw.appendSampleTimes(begin - horizon - 1, end + horizon + 1, times_);
+  raw.appendSampleTimes(begin - horizon - 1, end + std::max(horizon, look_ahead) + 1, times_);
   // Sources report their times in order (tf, PoseSamples): sorting is then a check.
   if (!std::is_sorted(times_.begin(), times_.end()))
     std::sort(times_.begin(), times_.end());
@@ -185,10 +185,13 @@ bool TwistMotion::gatherSamples(const MotionSource& raw, TimeNs begin, TimeNs en
   const auto at_end = std::lower_bound(times_.begin(), times_.end(), end);
   if (after_begin == times_.begin() || at_end == times_.end())
     return false;
-  // After the sweep only the sample that closes it: the fit then depends on nothing that arrives after
-  // the sweep is covered (a scan is corrected as soon as it is, live and offline), so how much tf had
-  // arrived by then cannot change a scan's correction.
-  times_.erase(at_end + 1, times_.end());
+  // After the sweep only the sample that closes it and those up to end + look_ahead: the fit then
+  // depends on nothing after them, so how much tf had arrived by the time the sweep is corrected
+  // cannot change its correction once tf covers that time.
+  auto kept_end = at_end + 1;
+  if (look_ahead > 0)
+    kept_end = std::max(kept_end, std::upper_bound(times_.begin(), times_.end(), end + look_ahead));
+  times_.erase(kept_end, times_.end());
   const std::size_t first = static_cast<std::size_t>(after_begin - times_.begin()) - 1;
   const std::size_t last = static_cast<std::size_t>(at_end - times_.begin());
 
@@ -251,11 +254,12 @@ bool TwistMotion::gatherSamples(const MotionSource& raw, TimeNs begin, TimeNs en
       ++cached;
     samples_.push_back(&*cached);
   }
+  closing_ = last - low;
   return samples_.size() >= 2;
 }
 
 void TwistMotion::estimateNoise() {
-  const std::size_t count = means_.size();
+  const std::size_t count = closing_;  // the intervals up to the sweep's end, whatever the look-ahead
   noise_.setZero();
   // The floor: twist differences that move a point by less than 0.01 mm over a typical interval.
   const double typical = kthSmallest(durations_.data(), count, count / 2, scratch_);
@@ -362,7 +366,7 @@ void TwistMotion::estimateNoise() {
 }
 
 void TwistMotion::fitInterval(std::size_t j, int c, double& mean, double& slope) const {
-  const std::size_t count = means_.size();
+  const std::size_t count = closing_;  // exact samples: up to the sweep's end, whatever the look-ahead
   const double variance = floor_[c] * floor_[c];
   const auto x = [&](std::size_t k) { return centres_[k] - centres_[j]; };
   const auto y = [&](std::size_t k) { return means_[k][c]; };
@@ -479,15 +483,16 @@ void TwistMotion::fitNoisySweep(std::size_t first, std::size_t last) {
   // laser_geometry's chord between the sweep's ends does, and an arc's or ramp's motion kept); else its
   // samples are followed.
   const std::size_t lo = first >= last - first ? first - (last - first) : 0;
+  const std::size_t hi = std::min(means_.size(), last + (last - first));  // the look-ahead's intervals
   for (std::size_t c = 0; c < 6; ++c) {
     SweepLine& line = sweep_line_[c];
     line.valid = false;
-    if (!noisy_[c] || last - lo < 3)
+    if (!noisy_[c] || hi - lo < 3)
       continue;
     const int component = static_cast<int>(c);
     line.centre = centres_[first];
     LineSums sums;
-    for (std::size_t k = lo; k < last; ++k)
+    for (std::size_t k = lo; k < hi; ++k)
       sums.add(centres_[k] - line.centre, means_[k][component]);
     double alpha, beta, rss;
     const double variance = noise_[component] * noise_[component] + floor_[component] * floor_[component];
@@ -499,12 +504,12 @@ void TwistMotion::fitNoisySweep(std::size_t first, std::size_t last) {
   }
 }
 
-const MotionSource& TwistMotion::prepare(const MotionSource& raw, TimeNs begin, TimeNs end) {
+const MotionSource& TwistMotion::prepare(const MotionSource& raw, TimeNs begin, TimeNs end, TimeNs look_ahead) {
   raw_ = &raw;
   pieces_.clear();
   fastest_change_ = 0.0;
   screws_ = false;
-  if (!gatherSamples(raw, begin, end))
+  if (!gatherSamples(raw, begin, end, look_ahead))
     return raw;
 
   // Interval mean twists.
@@ -527,15 +532,17 @@ const MotionSource& TwistMotion::prepare(const MotionSource& raw, TimeNs begin, 
   }
   estimateNoise();
 
-  // The intervals the span touches: from the last sample at or before begin to the first at or after end.
+  // The intervals the span touches: from the last sample at or before begin to the first at or after end
+  // (the look-ahead's samples only inform the noisy fit).
+  const std::size_t sweep_samples = closing_ + 1;
   std::size_t first = 0;
-  while (first + 1 < samples_.size() && sample(first + 1).time <= begin)
+  while (first + 1 < sweep_samples && sample(first + 1).time <= begin)
     ++first;
   std::size_t last = first;
-  while (last + 1 < samples_.size() && sample(last).time < end)
+  while (last + 1 < sweep_samples && sample(last).time < end)
     ++last;
   if (last == first) {  // a span of one instant on a sample: the interval after it, else before
-    if (first + 1 < samples_.size())
+    if (first + 1 < sweep_samples)
       ++last;
     else
       --first;

@@ -127,6 +127,7 @@ int main(int argc, char** argv) {
       params = ros_adapter::DeskewParams::load(ros_adapter::TextParams(values));
       options.timing = params.timing;
       options.deskew.interpolation = params.deskew.interpolation;
+      options.deskew.fit_look_ahead = params.deskew.fit_look_ahead;
     }
     if (cloud)
       return cloudMetrics(bag_path, truth_path, markdown, params);

@@ -329,7 +329,8 @@ TEST(TwistMotion, ThirdOrderOnATwistChangingBetweenSamples) {
 /// RMS error [m] of the motion since each of 30 sweeps' start (200 ms each), at a point 3 m ahead: the
 /// twist fit's and tf's line's.
 template <class TwistAt>
-void noisySweepErrors(TwistAt twist_at, unsigned seed, double& rms_twist, double& rms_linear) {
+void noisySweepErrors(TwistAt twist_at, unsigned seed, double& rms_twist, double& rms_linear,
+                      double look_ahead = 0.0) {
   std::mt19937 random(seed);
   std::normal_distribution<double> noise(0.0, 0.1);
   std::vector<CPose3D> truth(1);  // every 1 ms for 8 s
@@ -352,7 +353,7 @@ void noisySweepErrors(TwistAt twist_at, unsigned seed, double& rms_twist, double
   int count = 0;
   for (int sweep = 0; sweep < 30; ++sweep) {
     const TimeNs begin = kT0 + kSecond + sweep * kSecond / 5 + kSecond / 100, end = begin + kSecond / 5;
-    motion.prepare(samples, begin, end);
+    motion.prepare(samples, begin, end, secondsToNs(look_ahead));
     EXPECT_GT(motion.estimatedNoise()[5], 0.02);
     const CPose3D twist_start = motion.basePose(begin), linear_start = samples.basePose(begin);
     const std::size_t first = static_cast<std::size_t>((begin - kT0) / 1'000'000);
@@ -399,6 +400,34 @@ TEST(TwistMotion, NoisyOdometryAveragedWhereALineExplainsTheSweep) {
     arc_linear_sum += arc_linear;
   }
   EXPECT_LT(arc_sum, 0.95 * arc_linear_sum);  // measured 0.92
+}
+
+// With a look-ahead of 0.2 s (as long as the sweeps) the line is fit over a window centred on the sweep:
+// on the arc the noise averages out further than from one side, and on the smooth drive it stays within
+// 5 % of following the samples, tf's line (each seed, as without it).
+TEST(TwistMotion, NoisyOdometryWithALookAheadAveragesBothSides) {
+  double ahead_sum = 0.0, behind_sum = 0.0, linear_sum = 0.0;
+  for (const unsigned seed : {7u, 8u, 9u}) {
+    double ahead, behind, linear, smooth_ahead, smooth_linear;
+    const auto arc = [](double) { return (Twist() << 1.5, 0.0, 0.0, 0.0, 0.0, 2.0).finished(); };
+    noisySweepErrors(arc, seed, ahead, linear, 0.2);
+    noisySweepErrors(arc, seed, behind, linear, 0.0);
+    noisySweepErrors(
+        [](double t) {
+          return (Twist() << 6.0 * std::cos(M_PI * t), 0.0, 0.0, 0.0, 0.0, 5.0 * std::cos(2.0 * M_PI * t / 1.3))
+              .finished();
+        },
+        seed, smooth_ahead, smooth_linear, 0.2);
+    std::printf("noisy odometry (seed %u), look-ahead 0.2 s: arc %.2f mm (without %.2f, linear %.2f); smooth "
+                "drive %.2f (linear %.2f) mm RMS\n",
+                seed, 1e3 * ahead, 1e3 * behind, 1e3 * linear, 1e3 * smooth_ahead, 1e3 * smooth_linear);
+    EXPECT_LT(ahead, 1.05 * linear) << seed;
+    EXPECT_LT(smooth_ahead, 1.05 * smooth_linear) << seed;
+    ahead_sum += ahead;
+    behind_sum += behind;
+    linear_sum += linear;
+  }
+  EXPECT_LT(ahead_sum, behind_sum);
 }
 
 // A sweep is corrected as soon as tf covers it, live and offline, and tf after that arrives in whatever
@@ -453,6 +482,78 @@ TEST(TwistMotion, SweepsMotionDoesNotDependOnTheTfAfterIt) {
       }
     }
     EXPECT_EQ(compared, 10 * 63);
+  }
+}
+
+// With a look-ahead L the fit of noisy samples also reads the samples after the sweep up to end + L,
+// and nothing after: prepared from the samples up to the first at or after end + L, from samples two
+// seconds further, and by one TwistMotion fed them in pieces (prepared as each 0.1 s arrives, as tf
+// comes), the sweep's motion is the same to the bit. With exact samples the look-ahead changes nothing
+// (the fit of exact samples reads up to the sample closing the sweep); with noisy ones it does.
+TEST(TwistMotion, LookAheadReadsTheSamplesUpToItOnly) {
+  constexpr TimeNs kLookAhead = 3 * kSecond / 10;
+  std::mt19937 random(11);
+  std::normal_distribution<double> noise(0.0, 0.1);
+  for (const bool noisy : {false, true}) {
+    std::vector<std::pair<TimeNs, CPose3D>> poses;
+    CPose3D odometry;
+    for (int k = 0; k <= 300; ++k) {  // 6 s at 50 Hz on an arc whose speed changes
+      const double t = k * 0.02;
+      poses.emplace_back(kT0 + k * kSecond / 50, odometry);
+      Twist step = Twist::Zero();
+      step[0] = 0.02 * (1.5 + 0.5 * std::cos(M_PI * t));
+      step[5] = 0.02 * 2.0;
+      if (noisy) {
+        for (int c : {0, 5})
+          step[c] *= 1.0 + noise(random);
+      }
+      odometry = twist::constantTwist(odometry, step, 1.0);
+    }
+    PoseSamples all;
+    for (const auto& [time, pose] : poses)
+      all.add(time, pose);
+    int compared = 0, changed = 0;
+    for (int sweep = 0; sweep < 10; ++sweep) {
+      const TimeNs begin = kT0 + 2 * kSecond + sweep * kSecond / 5 + 3'000'000, end = begin + kSecond / 5;
+      PoseSamples covering;  // up to the first sample at or after end + look-ahead
+      for (const auto& [time, pose] : poses) {
+        covering.add(time, pose);
+        if (time >= end + kLookAhead)
+          break;
+      }
+      PoseSamples growing;  // the same samples, arriving in pieces of 0.1 s
+      TwistMotion early, late, in_pieces, without;
+      std::size_t next = 0;
+      for (TimeNs arrived = end; next < poses.size() && poses[next].first <= end + kLookAhead + kSecond / 10;
+           arrived += kSecond / 10) {
+        for (; next < poses.size() && poses[next].first <= arrived; ++next)
+          growing.add(poses[next].first, poses[next].second);
+        in_pieces.prepare(growing, begin, end, kLookAhead);
+      }
+      early.prepare(covering, begin, end, kLookAhead);
+      late.prepare(all, begin, end, kLookAhead);
+      without.prepare(all, begin, end);
+      EXPECT_EQ(late.estimatedNoise()[5] > 0.02, noisy) << sweep;  // the branch meant is the one tested
+      for (TimeNs t = begin; t <= end; t += kSecond / 500) {
+        const CPose3D a = early.basePose(t), b = late.basePose(t), c = in_pieces.basePose(t);
+        for (const CPose3D* other : {&a, &c}) {
+          EXPECT_EQ(other->x(), b.x()) << noisy << " " << sweep << " " << t;
+          EXPECT_EQ(other->y(), b.y()) << noisy << " " << sweep << " " << t;
+          EXPECT_EQ(other->yaw(), b.yaw()) << noisy << " " << sweep << " " << t;
+        }
+        const CPose3D d = without.basePose(t);
+        if (!noisy) {
+          EXPECT_EQ(d.x(), b.x()) << sweep << " " << t;
+          EXPECT_EQ(d.y(), b.y()) << sweep << " " << t;
+          EXPECT_EQ(d.yaw(), b.yaw()) << sweep << " " << t;
+        }
+        changed += d.x() != b.x() || d.yaw() != b.yaw() ? 1 : 0;
+        ++compared;
+      }
+    }
+    EXPECT_EQ(compared, 10 * 101);
+    if (noisy)
+      EXPECT_GT(changed, compared / 2);  // the look-ahead is used
   }
 }
 

@@ -27,8 +27,9 @@ Twist se3Bracket(const Twist& a, const Twist& b);
 ///
 /// - Each interval k between samples k and k+1 has a mean twist m_k = Log(T_k^-1 T_k+1) / h_k, and
 ///   keeps it: the fitted motion passes through every sample.
-/// - Only the samples up to the one that closes the sweep are read, never later ones: a sweep is
-///   corrected as soon as tf covers it, and what arrives after cannot change its correction.
+/// - Only the samples up to the one that closes the sweep are read, and, with a look-ahead L, those up
+///   to end + L for the noisy fit alone: the fit depends on the samples up to max(closing sample,
+///   end + L) only, never on what the source holds after them (what arrived later).
 /// - The noise is estimated from the samples themselves: how far each interval's mean lies from the
 ///   best of the simplest local models (constant over two intervals, straight over three, a quartic
 ///   over six), a median over the intervals of about a second before the sweep to its end. Exact
@@ -41,8 +42,10 @@ Twist se3Bracket(const Twist& a, const Twist& b);
 ///   O(h^3); a step or kink beside it: the parabola on its other side), where five intervals around it
 ///   are smooth (their means' fourth difference within 0.4 of their changes; else no slope).
 /// - With noisy samples (noise above 1 % of the component's typical size): one line through the means
-///   of the sweep's intervals and as many before, where its residuals stay below 0.7 of the noise's
-///   variance (fitNoisySweep); else each interval's twist constant (an arc through both samples).
+///   of the sweep's intervals, as many before and, with a look-ahead, as many after as it holds, where
+///   its residuals stay below 0.7 of the noise's variance (fitNoisySweep); else each interval's twist
+///   constant (an arc through both samples). The noise estimate and the fit of exact samples read the
+///   samples up to the closing one only, whatever the look-ahead.
 /// - Over an interval the fitted twist is integrated to second order (two Magnus terms) such that its
 ///   end lies where the interval's mean twist takes it.
 ///
@@ -52,11 +55,12 @@ Twist se3Bracket(const Twist& a, const Twist& b);
 class TwistMotion final : public MotionSource {
  public:
   /// Fits the motion of `raw` over [begin, end] from its samples (MotionSource::appendSampleTimes and
-  /// basePose at those times). Returns *this, or `raw` itself when raw reports no samples at or before
-  /// `begin` and at or after `end` that it can answer (a continuous source; tf beyond its newest
-  /// sample, extrapolated): then its own motion is used as it is. Throws what raw.basePose throws for
-  /// a time in [begin, end].
-  const MotionSource& prepare(const MotionSource& raw, TimeNs begin, TimeNs end);
+  /// basePose at those times), noisy ones also from its samples in (end, end + look_ahead] [ns] that
+  /// it answers (DeskewConfig::fit_look_ahead; 0 = none). Returns *this, or `raw` itself when raw
+  /// reports no samples at or before `begin` and at or after `end` that it can answer (a continuous
+  /// source; tf beyond its newest sample, extrapolated): then its own motion is used as it is. Throws
+  /// what raw.basePose throws for a time in [begin, end].
+  const MotionSource& prepare(const MotionSource& raw, TimeNs begin, TimeNs end, TimeNs look_ahead = 0);
 
   /// The fitted pose at `time` within the prepared span's sample intervals; throws MotionUnavailable
   /// elsewhere.
@@ -106,12 +110,13 @@ class TwistMotion final : public MotionSource {
   std::deque<Sample>::iterator cachedAt(TimeNs time);
   /// The k-th sample of the window prepare() fits over (kept in cache_).
   Sample& sample(std::size_t k) const { return *samples_[k]; }
-  bool gatherSamples(const MotionSource& raw, TimeNs begin, TimeNs end);
+  bool gatherSamples(const MotionSource& raw, TimeNs begin, TimeNs end, TimeNs look_ahead);
   void estimateNoise();
   /// Fitted (mean twist, slope) of interval j, component c.
   void fitInterval(std::size_t j, int c, double& mean, double& slope) const;
-  /// For each noisy component: the line through the means of the sweep's intervals [first, last) and as
-  /// many before, if it explains them within the noise (sweep_line_).
+  /// For each noisy component: the line through the means of the sweep's intervals [first, last), as
+  /// many before and as many after as the look-ahead's samples hold, if it explains them within the
+  /// noise (sweep_line_).
   void fitNoisySweep(std::size_t first, std::size_t last);
   struct SweepLine {
     bool valid = false;
@@ -121,6 +126,7 @@ class TwistMotion final : public MotionSource {
 
   const MotionSource* raw_ = nullptr;
   std::vector<Sample*> samples_;  // the window's samples, in cache_ (stable until the next prepare())
+  std::size_t closing_ = 0;       // samples_[closing_] closes the sweep; later ones: the look-ahead's
   std::deque<Sample> cache_;      // the source's answers at its sample times, sorted
   const MotionSource* cache_source_ = nullptr;
   TimeNs cache_begin_ = 0;
