@@ -35,6 +35,39 @@ Evaluation simulateAndEvaluate(const std::string& scenario, bool noise, double t
   return result;
 }
 
+// Noisy odometry (10 % per 20 ms step, range noise on): every planar scenario, at seeds 1-3 in turn,
+// scored with tf's line (interpolation linear) and the twist fit with a look-ahead of 0.5 s (the line
+// over a window centred on the sweep where the data do not reject it): never worse than tf's line, but
+// where the fit follows the samples as arcs rather than tf's chords (ILD26TRI/varying: 95.34 against
+// 95.14 mm, as without the look-ahead), and over all of them 0.87 of it.
+TEST(PaperCases, NoisyOdometryWithALookAheadNeverWorseThanTfsLine) {
+  const std::vector<sim::Scenario> scenarios = sim::paperScenarios();
+  double linear_sum = 0.0, fit_sum = 0.0;
+  for (std::size_t k = 0; k < scenarios.size(); ++k) {
+    const std::string bag =
+        ::testing::TempDir() + "/paper_case_odometry_" + std::to_string(::getpid()) + ".bag";
+    const std::string truth = bag + ".truth";
+    sim::SimBagOptions options;
+    options.noise = true;
+    options.seed = static_cast<unsigned>(k % 3 + 1);
+    options.odom_noise = 0.1;
+    options.odom_noise_seed = options.seed;
+    sim::writeSimulationBag(scenarios[k], options, bag, truth);
+    EvaluateOptions linear, ahead;
+    linear.deskew.interpolation = core::Interpolation::kLinear;
+    ahead.deskew.fit_look_ahead = 0.5;
+    const Evaluation line = evaluateBag(bag, truth, linear), fit = evaluateBag(bag, truth, ahead);
+    std::remove(bag.c_str());
+    std::remove(truth.c_str());
+    std::printf("%-26s odometry noise 0.1, seed %u: linear %.2f, look-ahead 0.5 s %.2f mm RMS\n",
+                scenarios[k].name.c_str(), options.seed, line.cloud.rms, fit.cloud.rms);
+    EXPECT_LE(fit.cloud.rms, 1.005 * line.cloud.rms) << scenarios[k].name;
+    linear_sum += line.cloud.rms;
+    fit_sum += fit.cloud.rms;
+  }
+  EXPECT_LT(fit_sum, 0.9 * linear_sum);
+}
+
 // Noise off: what is left is the correction's own error. tf at 50 Hz is linear between samples, which
 // at normal speed leaves well under 0.1 mm. The re-binned scan is exact where rays fall between two
 // points on one wall; at corners it follows the chord between neighbouring returns (up to decimetres

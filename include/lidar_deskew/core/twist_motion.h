@@ -42,10 +42,12 @@ Twist se3Bracket(const Twist& a, const Twist& b);
 ///   O(h^3); a step or kink beside it: the parabola on its other side), where five intervals around it
 ///   are smooth (their means' fourth difference within 0.4 of their changes; else no slope).
 /// - With noisy samples (noise above 1 % of the component's typical size): one line through the means
-///   of the sweep's intervals, as many before and, with a look-ahead, as many after as it holds, where
-///   its residuals stay below 0.7 of the noise's variance (fitNoisySweep); else each interval's twist
-///   constant (an arc through both samples). The noise estimate and the fit of exact samples read the
-///   samples up to the closing one only, whatever the look-ahead.
+///   of the sweep's intervals, as many before and, with a look-ahead, as many after as it holds; else
+///   each interval's twist constant (an arc through both samples, as tf's line passes through them).
+///   One-sided (no look-ahead), the line only where its residuals stay below 0.7 of the noise's
+///   variance; centred, unless its residuals reject it (chi-square, 99.9 %) or a parabola explains them
+///   significantly better (95 %) (fitNoisySweep). The noise estimate and the fit of exact samples
+///   read the samples up to the closing one only, whatever the look-ahead.
 /// - Over an interval the fitted twist is integrated to second order (two Magnus terms) such that its
 ///   end lies where the interval's mean twist takes it.
 ///
