@@ -16,8 +16,6 @@ constexpr double kMinKnotInterval = 1e-5;
 /// [s] Longer knot intervals would overflow the knot loop's time arithmetic and make no sense: a sweep
 /// lasts at most max_sweep_duration.
 constexpr double kMaxKnotInterval = 1.0;
-/// [s] The twist fit reads tf at most this far past a sweep's end.
-constexpr double kMaxFitLookAhead = 10.0;
 
 /// sin(x) and 1 - cos(x), exact to double precision (relative error < 1e-16). Short Taylor series
 /// for the small angles knots give (5 rad/s over 5 ms is 0.025 rad), the library beyond. Series
@@ -337,8 +335,8 @@ void DeskewConfig::validate() const {
                                             ", " + std::to_string(kMaxKnotInterval) + "] s, got " +
                                             std::to_string(knot_interval));
   }
-  if (!(fit_look_ahead >= 0.0 && fit_look_ahead <= kMaxFitLookAhead)) {
-    throw InvalidInput("fit_look_ahead", "must be in [0, " + std::to_string(kMaxFitLookAhead) + "] s, got " +
+  if (!(fit_look_ahead >= 0.0 && fit_look_ahead <= kFitHorizon)) {
+    throw InvalidInput("fit_look_ahead", "must be in [0, " + std::to_string(kFitHorizon) + "] s, got " +
                                              std::to_string(fit_look_ahead));
   }
 }

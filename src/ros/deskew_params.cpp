@@ -78,9 +78,10 @@ const ParamSpec kSpecs[] = {
      "motion between tf samples: twist = each interval's body twist, changing as its neighbours' "
      "show where the samples are exact (exact on arcs, third order between samples); linear = tf2's own "
      "straight line"},
-    {"fit_look_ahead", "double", "0.0", "s", 0.0, 10.0, false, "", false, false,
-     "interpolation twist: noisy odometry is also averaged over tf's samples up to this long after the "
-     "sweep's end; 0 = up to the sample closing the sweep"},
+    {"fit_look_ahead", "double", "0.0", "s", 0.0, 1.0, false, "", false, false,
+     "interpolation twist: the fit also reads tf's samples up to this long after the sweep's end, and "
+     "live the scan waits for them (up to tf_timeout); 0 = up to the sample closing the sweep. "
+     "deskew_bag: 1 unless given"},
     {"exact", "bool", "false", "", kNoBound, kNoBound, false, "", false, false,
      "one tf lookup per beam (verification, benchmarks)"},
     {"tf_timeout", "double", "0.2", "s", 0.0, 60.0, false, "", false, true,

@@ -393,9 +393,13 @@ void SweepPipeline<Processor>::serveReady(double now) {
     const Pending& front = pending_.front();
     std::string never;
     const Coverage coverage = tf_.coverage(front.prepared.earliest(), front.prepared.latest(), &never);
-    // The mount may arrive after the motion (another connection): wait for both. tf only grows: later
-    // scans wait too.
-    if (coverage == Coverage::kNotYet || (coverage == Coverage::kCovered && !tf_.mountKnown(front.frame)))
+    // The mount may arrive after the motion (another connection): wait for both, and for tf to pass the
+    // sweep's end by the twist fit's look-ahead (fit_look_ahead; expire() serves it with what there is
+    // at tf_timeout). tf only grows: later scans wait too.
+    if (coverage == Coverage::kNotYet ||
+        (coverage == Coverage::kCovered &&
+         (!tf_.mountKnown(front.frame) ||
+          (lookAheadNs() > 0 && tf_.newestChainTime() < front.prepared.latest() + lookAheadNs()))))
       return;
     const Pending next = std::move(pending_.front());
     pending_.pop_front();
@@ -417,9 +421,7 @@ void SweepPipeline<Processor>::serveRecorded(double now) {
   // however the recording interleaves tf and scans (flush() serves with what there is). Once tf has
   // passed its end, tf either covers it or never will (its start before tf began, or gone from the cache).
   const core::TimeNs newest = tf_.newestChainTime();
-  const core::TimeNs look_ahead = params_.deskew.interpolation == core::Interpolation::kTwist
-                                      ? core::secondsToNs(params_.deskew.fit_look_ahead)
-                                      : 0;
+  const core::TimeNs look_ahead = lookAheadNs();
   std::map<std::string, bool> mount_known;  // by frame, for this call
   for (auto it = pending_.begin(); it != pending_.end();) {
     const core::TimeNs latest = it->prepared.latest();
@@ -531,9 +533,14 @@ void SweepPipeline<Processor>::expire(double now) {
 }
 
 template <class Processor>
+core::TimeNs SweepPipeline<Processor>::lookAheadNs() const {
+  return params_.deskew.interpolation == core::Interpolation::kTwist ? core::secondsToNs(params_.deskew.fit_look_ahead)
+                                                                     : 0;
+}
+
+template <class Processor>
 bool SweepPipeline<Processor>::coveredWithoutLookAhead(const Pending& pending) const {
-  if (waiting_ != Waiting::kRecording || params_.deskew.interpolation != core::Interpolation::kTwist ||
-      params_.deskew.fit_look_ahead == 0.0)
+  if (lookAheadNs() == 0)
     return false;
   const core::TimeNs newest = tf_.newestChainTime();
   return newest >= pending.prepared.latest() && !onOtherLine(pending, newest) &&

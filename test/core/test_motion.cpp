@@ -488,8 +488,8 @@ TEST(TwistMotion, SweepsMotionDoesNotDependOnTheTfAfterIt) {
 // With a look-ahead L the fit of noisy samples also reads the samples after the sweep up to end + L,
 // and nothing after: prepared from the samples up to the first at or after end + L, from samples two
 // seconds further, and by one TwistMotion fed them in pieces (prepared as each 0.1 s arrives, as tf
-// comes), the sweep's motion is the same to the bit. With exact samples the look-ahead changes nothing
-// (the fit of exact samples reads up to the sample closing the sweep); with noisy ones it does.
+// comes), the sweep's motion is the same to the bit, exact samples or noisy ones; and it differs from
+// the fit without a look-ahead (centred stencils, the noise averaged on both sides).
 TEST(TwistMotion, LookAheadReadsTheSamplesUpToItOnly) {
   constexpr TimeNs kLookAhead = 3 * kSecond / 10;
   std::mt19937 random(11);
@@ -542,18 +542,12 @@ TEST(TwistMotion, LookAheadReadsTheSamplesUpToItOnly) {
           EXPECT_EQ(other->yaw(), b.yaw()) << noisy << " " << sweep << " " << t;
         }
         const CPose3D d = without.basePose(t);
-        if (!noisy) {
-          EXPECT_EQ(d.x(), b.x()) << sweep << " " << t;
-          EXPECT_EQ(d.y(), b.y()) << sweep << " " << t;
-          EXPECT_EQ(d.yaw(), b.yaw()) << sweep << " " << t;
-        }
         changed += d.x() != b.x() || d.yaw() != b.yaw() ? 1 : 0;
         ++compared;
       }
     }
     EXPECT_EQ(compared, 10 * 101);
-    if (noisy)
-      EXPECT_GT(changed, compared / 2);  // the look-ahead is used
+    EXPECT_GT(changed, noisy ? compared / 2 : 0);  // the look-ahead is used (exact: centred stencils)
   }
 }
 

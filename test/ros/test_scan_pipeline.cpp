@@ -177,6 +177,41 @@ TEST(ScanPipeline, RepublishedMountServesTheScansEndingAfterItsStamp) {
   }
 }
 
+// Live with a look-ahead of the twist fit (fit_look_ahead): a scan tf covers waits until tf passes its
+// end by the look-ahead, and at tf_timeout it is served with what there is, not failed.
+TEST(ScanPipeline, LiveScanWaitsForTheLookAheadThenIsServedWithWhatThereIs) {
+  ros_adapter::DeskewParams params;
+  params.tf_timeout = 0.3;
+  params.deskew.fit_look_ahead = 0.1;
+  PipelineRun run(Drive(), params);
+  const double period = 1.0 / run.drive.model.rate;
+  run.statics(0.0);
+  run.tfUntil(0.2 + period + 0.04);
+  run.pipeline.add(run.drive.scanAt(0.2), 0.2 + period + 0.01);
+  EXPECT_EQ(run.pipeline.waiting(), 1u);  // tf covers the sweep, not its end + 0.1 s
+  run.tfUntil(0.2 + period + 0.08);
+  EXPECT_EQ(run.pipeline.waiting(), 1u);
+  run.tfUntil(0.2 + period + 0.12);  // tf every 20 ms: the first sample at or after end + 0.1 s
+  EXPECT_EQ(run.pipeline.waiting(), 0u);
+  ASSERT_EQ(run.results.size(), 1u);
+  EXPECT_TRUE(run.results[0].corrected);
+  // tf stops 0.04 s after the next sweep: served at tf_timeout with the samples there are.
+  const double next = 0.6;
+  run.tfUntil(next + period + 0.04);
+  run.pipeline.add(run.drive.scanAt(next), next + period + 0.01);
+  run.pipeline.expire(next + period + 0.3);
+  EXPECT_EQ(run.pipeline.waiting(), 1u);
+  run.pipeline.expire(next + period + 0.32);
+  EXPECT_EQ(run.pipeline.waiting(), 0u);
+  ASSERT_EQ(run.results.size(), 2u);
+  EXPECT_TRUE(run.results[1].corrected);
+  EXPECT_EQ(run.pipeline.counters().dropped_tf, 0u);
+  // tf's samples are exact: the corrected points lie on the true walls either way.
+  const std::vector<double> distances = run.cloudDistances();
+  ASSERT_FALSE(distances.empty());
+  EXPECT_LT(*std::max_element(distances.begin(), distances.end()), 1e-3);
+}
+
 // Waiting is measured on the owner's clock: a scan waits up to tf_timeout for tf, then fails.
 TEST(ScanPipeline, ScansWaitOnTheOwnersClockThenFail) {
   for (const auto failure : {ros_adapter::OnTfFailure::kDrop, ros_adapter::OnTfFailure::kPassThrough}) {

@@ -45,7 +45,7 @@ struct DeskewConfig {
   double fit_look_ahead = 0.0;
 
   /// Throws InvalidInput("knot_interval") when negative, not finite, or outside [1e-5, 1] s (0 = exact);
-  /// InvalidInput("fit_look_ahead") when negative, not finite or over 10 s.
+  /// InvalidInput("fit_look_ahead") when negative, not finite or over kFitHorizon (1 s).
   void validate() const;
 };
 
