@@ -7,11 +7,134 @@
 #include "lidar_deskew/ros/conversions.h"
 
 namespace lidar_deskew::ros_adapter {
+namespace {
+
+/// One step of tf2's walk up the tree (BufferCore's TransformAccum::accum): `link` composed on the left
+/// of what was accumulated.
+void accumulate(const OneLinkChain::Link& link, OneLinkChain::Link& accumulated) {
+  accumulated.translation = tf2::quatRotate(link.rotation, accumulated.translation) + link.translation;
+  accumulated.rotation = link.rotation * accumulated.rotation;
+}
+
+OneLinkChain::Link identityLink() {
+  return {tf2::Quaternion(0.0, 0.0, 0.0, 1.0), tf2::Vector3(0.0, 0.0, 0.0)};
+}
+
+}  // namespace
+
+void OneLinkChain::setChain(const std::string& child, const std::string& parent, std::vector<Link> below,
+                            std::vector<Link> above, bool fixed_has_static_parent, core::TimeNs newest) {
+  if (!valid_ || child != child_ || parent != parent_) {
+    // Another dynamic link: its samples start with the next one in order (tf2 may hold older ones).
+    samples_.clear();
+    child_ = child;
+    parent_ = parent;
+    newest_ = newest;
+    complete_ = newest == 0;
+    before_ = newest;
+  }
+  valid_ = true;
+  below_ = identityLink();
+  for (const Link& link : below)
+    accumulate(link, below_);
+  above_ = std::move(above);
+  fixed_has_static_parent_ = fixed_has_static_parent;
+}
+
+void OneLinkChain::clearChain() {
+  valid_ = false;
+  samples_.clear();
+}
+
+void OneLinkChain::clearSamples() {
+  samples_.clear();
+  newest_ = 0;
+  complete_ = true;
+  before_ = 0;
+}
+
+void OneLinkChain::add(const std::string& child, const std::string& parent, core::TimeNs stamp,
+                       const geometry_msgs::Transform& transform) {
+  if (!valid_ || child != child_)
+    return;
+  if (parent != parent_ || stamp <= newest_) {
+    // Out of order, repeated, or from another parent: tf2's samples around it are not all kept here.
+    // Kept again from the next one in order.
+    newest_ = std::max(newest_, stamp);
+    samples_.clear();
+    complete_ = false;
+    before_ = newest_;
+    return;
+  }
+  newest_ = stamp;
+  // As tf2's TransformStorage holds it.
+  samples_.push_back(
+      {stamp,
+       {tf2::Quaternion(transform.rotation.x, transform.rotation.y, transform.rotation.z,
+                        transform.rotation.w),
+        tf2::Vector3(transform.translation.x, transform.translation.y, transform.translation.z)}});
+  // tf2's TimeCache::pruneList: samples older than the cache time before the newest.
+  while (samples_.front().stamp + cache_ < stamp)
+    samples_.pop_front();
+  if (!complete_ && before_ + cache_ < stamp)
+    complete_ = true;  // tf2 pruned the samples before the first kept too
+}
+
+bool OneLinkChain::answer(core::TimeNs time, geometry_msgs::Transform& out) const {
+  if (!valid_ || samples_.empty() || time < samples_.front().stamp || time > samples_.back().stamp)
+    return false;
+  // tf2's TimeCache::findClosest and getData: its newest and earliest samples as they are, else the
+  // pair around `time` (the older one at or before it) interpolated, even at a sample's own stamp.
+  Link link;
+  if (time == samples_.back().stamp) {
+    link = samples_.back().link;
+  } else if (time == samples_.front().stamp && complete_) {
+    link = samples_.front().link;
+  } else {
+    const auto newer =
+        std::upper_bound(samples_.begin(), samples_.end(), time,
+                         [](core::TimeNs t, const Sample& sample) { return t < sample.stamp; });
+    const Sample& one = *std::prev(newer);
+    const Sample& two = *newer;
+    // TimeCache::interpolate, with ros::Time's arithmetic.
+    const ros::Time one_stamp = toRosTime(one.stamp);
+    const tf2Scalar ratio =
+        (toRosTime(time) - one_stamp).toSec() / (toRosTime(two.stamp) - one_stamp).toSec();
+    link.translation.setInterpolate3(one.link.translation, two.link.translation, ratio);
+    link.rotation = tf2::slerp(one.link.rotation, two.link.rotation, ratio);
+  }
+  // The walk from the base up: below the link, the link, above it.
+  Link accumulated = below_;
+  accumulate(link, accumulated);
+  for (const Link& static_link : above_)
+    accumulate(static_link, accumulated);
+  if (!fixed_has_static_parent_) {
+    // tf2 walked to the root, the fixed frame: its "full path" ending, the target's walk empty.
+    const Link target = identityLink();
+    const tf2::Quaternion inverse_target_rotation = target.rotation.inverse();
+    const tf2::Vector3 inverse_target_translation =
+        tf2::quatRotate(inverse_target_rotation, -target.translation);
+    accumulated.translation =
+        tf2::quatRotate(inverse_target_rotation, accumulated.translation) + inverse_target_translation;
+    accumulated.rotation = inverse_target_rotation * accumulated.rotation;
+  }
+  out.translation.x = accumulated.translation.x();
+  out.translation.y = accumulated.translation.y();
+  out.translation.z = accumulated.translation.z();
+  out.rotation.x = accumulated.rotation.x();
+  out.rotation.y = accumulated.rotation.y();
+  out.rotation.z = accumulated.rotation.z();
+  out.rotation.w = accumulated.rotation.w();
+  return true;
+}
 
 mrpt::poses::CPose3D TfMotionSource::basePose(core::TimeNs time) const {
   if (time < 0 || time >= (static_cast<core::TimeNs>(1) << 32) * 1'000'000'000) {
     throw core::MotionUnavailable(time, "time outside the range of ROS time");
   }
+  if (geometry_msgs::Transform answered; chain_.answer(time, answered))
+    return toPose(answered);
+  ++tf_lookups_;
   try {
     return toPose(buffer_->lookupTransform(fixed_frame_, base_frame_, toRosTime(time)).transform);
   } catch (const std::exception& error) {  // tf2's, or ros::Duration's "out of dual 32-bit range"
