@@ -16,6 +16,11 @@ void accumulate(const OneLinkChain::Link& link, OneLinkChain::Link& accumulated)
   accumulated.rotation = link.rotation * accumulated.rotation;
 }
 
+/// [s] A duration of `ns` >= 0 as ros::Duration::toSec gives it: whole seconds plus 1e-9 times the rest.
+double durationSeconds(core::TimeNs ns) {
+  return static_cast<double>(ns / 1'000'000'000) + 1e-9 * static_cast<double>(ns % 1'000'000'000);
+}
+
 OneLinkChain::Link identityLink() {
   return {tf2::Quaternion(0.0, 0.0, 0.0, 1.0), tf2::Vector3(0.0, 0.0, 0.0)};
 }
@@ -91,15 +96,18 @@ bool OneLinkChain::answer(core::TimeNs time, geometry_msgs::Transform& out) cons
   } else if (time == samples_.front().stamp && complete_) {
     link = samples_.front().link;
   } else {
-    const auto newer =
-        std::upper_bound(samples_.begin(), samples_.end(), time,
-                         [](core::TimeNs t, const Sample& sample) { return t < sample.stamp; });
+    // The first sample after `time`: usually among the newest (the fit asks for new samples).
+    auto newer = std::prev(samples_.end());
+    for (int step = 0; step < 8 && std::prev(newer)->stamp > time; ++step)
+      --newer;
+    if (std::prev(newer)->stamp > time) {
+      newer = std::upper_bound(samples_.begin(), newer, time,
+                               [](core::TimeNs t, const Sample& sample) { return t < sample.stamp; });
+    }
     const Sample& one = *std::prev(newer);
     const Sample& two = *newer;
-    // TimeCache::interpolate, with ros::Time's arithmetic.
-    const ros::Time one_stamp = toRosTime(one.stamp);
-    const tf2Scalar ratio =
-        (toRosTime(time) - one_stamp).toSec() / (toRosTime(two.stamp) - one_stamp).toSec();
+    // TimeCache::interpolate: the ratio of ros::Durations' seconds.
+    const tf2Scalar ratio = durationSeconds(time - one.stamp) / durationSeconds(two.stamp - one.stamp);
     link.translation.setInterpolate3(one.link.translation, two.link.translation, ratio);
     link.rotation = tf2::slerp(one.link.rotation, two.link.rotation, ratio);
   }
