@@ -159,6 +159,8 @@ bool TfFeed::add(const geometry_msgs::TransformStamped& transform_in, bool is_st
     motion_.setSingleLink(chain_.size() == 1 && parent == fixed_frame_ && child == base_frame_);
   }
   motion_.chain().add(child, parent, stamp, transform.transform);  // its own link's only
+  if (child == fixed_frame_)
+    motion_.chain().addFixedLinkStamp(stamp);  // a localiser's map -> odom
   return true;
 }
 
@@ -356,7 +358,7 @@ void TfFeed::chainChanged() {
 
 void TfFeed::planChain() {
   // tf2's walk from the base up to the fixed frame, through the parents as last seen: one dynamic link
-  // and statics around it, the fixed frame a root or the child of a static.
+  // and statics around it; the fixed frame's own link, if any, read as tf2 reads it.
   OneLinkChain& chain = motion_.chain();
   std::vector<OneLinkChain::Link> below, above;
   const std::string* moving = nullptr;
@@ -388,15 +390,16 @@ void TfFeed::planChain() {
     }
     frame = parent->second;
   }
-  // The fixed frame's own link: a dynamic one answers at some times only (tf2's walk then ends
-  // differently).
-  if (!moving || moving_.count(fixed_frame_) > 0) {
+  if (!moving) {
     chain.clearChain();
     return;
   }
+  const OneLinkChain::FixedLink fixed_link =
+      moving_.count(fixed_frame_) > 0    ? OneLinkChain::FixedLink::kDynamic
+      : statics_.count(fixed_frame_) > 0 ? OneLinkChain::FixedLink::kStatic
+                                         : OneLinkChain::FixedLink::kNone;
   const auto newest = newest_dynamic_stamps_.find(*moving);
-  chain.setChain(*moving, *moving_parent, std::move(below), std::move(above),
-                 statics_.count(fixed_frame_) > 0,
+  chain.setChain(*moving, *moving_parent, std::move(below), std::move(above), fixed_link,
                  newest == newest_dynamic_stamps_.end() ? 0 : newest->second);
 }
 

@@ -28,7 +28,7 @@ OneLinkChain::Link identityLink() {
 }  // namespace
 
 void OneLinkChain::setChain(const std::string& child, const std::string& parent, std::vector<Link> below,
-                            std::vector<Link> above, bool fixed_has_static_parent, core::TimeNs newest) {
+                            std::vector<Link> above, FixedLink fixed_link, core::TimeNs newest) {
   if (!valid_ || child != child_ || parent != parent_) {
     // Another dynamic link: its samples start with the next one in order (tf2 may hold older ones).
     samples_.clear();
@@ -43,7 +43,7 @@ void OneLinkChain::setChain(const std::string& child, const std::string& parent,
   for (const Link& link : below)
     accumulate(link, below_);
   above_ = std::move(above);
-  fixed_has_static_parent_ = fixed_has_static_parent;
+  fixed_link_ = fixed_link;
 }
 
 void OneLinkChain::clearChain() {
@@ -51,8 +51,17 @@ void OneLinkChain::clearChain() {
   samples_.clear();
 }
 
+void OneLinkChain::addFixedLinkStamp(core::TimeNs stamp) {
+  // As tf2's TimeCache keeps its stamps: in order (no repeats: tf2 refuses them), pruned by the newest.
+  fixed_link_stamps_.insert(std::upper_bound(fixed_link_stamps_.begin(), fixed_link_stamps_.end(), stamp),
+                            stamp);
+  while (fixed_link_stamps_.front() + cache_ < fixed_link_stamps_.back())
+    fixed_link_stamps_.pop_front();
+}
+
 void OneLinkChain::clearSamples() {
   samples_.clear();
+  fixed_link_stamps_.clear();
   newest_ = 0;
   complete_ = true;
   before_ = 0;
@@ -116,8 +125,15 @@ bool OneLinkChain::answer(core::TimeNs time, geometry_msgs::Transform& out) cons
   accumulate(link, accumulated);
   for (const Link& static_link : above_)
     accumulate(static_link, accumulated);
-  if (!fixed_has_static_parent_) {
-    // tf2 walked to the root, the fixed frame: its "full path" ending, the target's walk empty.
+  // tf2's walk reads the fixed frame's link (TimeCache::getData): a static one always answers, a
+  // dynamic one at its single stamp or between its earliest and newest.
+  const bool fixed_link_answers = fixed_link_ == FixedLink::kStatic ||
+                                  (fixed_link_ == FixedLink::kDynamic && !fixed_link_stamps_.empty() &&
+                                   (fixed_link_stamps_.size() == 1 ? time == fixed_link_stamps_.front()
+                                                                   : time >= fixed_link_stamps_.front() &&
+                                                                         time <= fixed_link_stamps_.back()));
+  if (!fixed_link_answers) {
+    // tf2's walk ended at the fixed frame, as at a root: its "full path" ending, the target's walk empty.
     const Link target = identityLink();
     const tf2::Quaternion inverse_target_rotation = target.rotation.inverse();
     const tf2::Vector3 inverse_target_translation =

@@ -535,14 +535,16 @@ std::vector<core::TimeNs> queryTimes(double from, double to) {
   return times;
 }
 
-// One dynamic link with statics below and above it, and the fixed frame a root or a static's child:
-// every answer is tf2's, to the bit, at and between its samples and at the ends of what its cache
-// keeps (2 s here), and none asks tf2.
+// One dynamic link with statics below and above it; the fixed frame a root, a static's child, or a
+// localiser's (map -> odom on /tf at 10 Hz from 1.5 s to 2.5 s: tf2's walk ends there within those
+// times only): every answer is tf2's, to the bit, at and between its samples and at the ends of what
+// its cache keeps (2 s here), and none asks tf2.
 TEST(TfFeed, OneDynamicLinkIsAnsweredAsTf2WithoutALookup) {
   struct Tree {
     const char* name;
     std::string fixed, base, moving_parent, moving;
     std::vector<geometry_msgs::TransformStamped> statics;
+    bool localiser = false;  ///< map -> odom on /tf
   };
   const ros::Time t0 = kDrive.stampOf(0.0);
   const std::vector<Tree> trees = {
@@ -567,14 +569,18 @@ TEST(TfFeed, OneDynamicLinkIsAnsweredAsTf2WithoutALookup) {
        "odom",
        "base_link",
        {stamped("earth", "odom", t0, {10.0, 20.0, 1.0})}},
+      {"fixed under a localiser", "odom", "base_link", "odom", "base_link", {}, true},
   };
   for (const Tree& tree : trees) {
     Fed fed(2.0, tree.fixed, tree.base);
     for (const auto& link : tree.statics)
       fed.feed.add(link, true);
     fed.feed.add(stamped(tree.base, "laser", t0, {0.25, 0.05, 0.1}), true);
-    for (int k = 0; k <= 150; ++k)
+    for (int k = 0; k <= 150; ++k) {
       fed.feed.add(wobbling(tree.moving_parent, tree.moving, 0.02 * k), false);
+      if (tree.localiser && k % 5 == 0 && k >= 75 && k <= 125)
+        fed.feed.add(wobbling("map", "odom", 0.02 * k, 0.7), false);
+    }
     const std::size_t lookups = fed.feed.motion().tfLookups();
     // tf2 keeps 1.0 s to 3.0 s: its earliest and newest answered as they are, the rest interpolated.
     for (const core::TimeNs time : queryTimes(1.0, 3.0))
@@ -582,7 +588,7 @@ TEST(TfFeed, OneDynamicLinkIsAnsweredAsTf2WithoutALookup) {
     EXPECT_EQ(fed.feed.motion().tfLookups(), lookups + 2) << tree.name;  // 1 ns outside, either end
     // Not a mock of tf2: the answers are the tree's poses.
     const sim::Pose2 moving = kDrive.trajectory.pose(2.0);
-    if (tree.statics.empty()) {
+    if (tree.statics.empty() && !tree.localiser) {
       const mrpt::poses::CPose3D base = fed.feed.motion().basePose(at(2.0));
       EXPECT_NEAR(base.x(), moving.x, 1e-9);
       EXPECT_NEAR(base.y(), moving.y, 1e-9);

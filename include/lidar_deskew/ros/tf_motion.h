@@ -29,20 +29,25 @@ class OneLinkChain {
     tf2::Quaternion rotation;
     tf2::Vector3 translation;
   };
+  /// The fixed frame's own link, where tf2's walk up from the base ends: at a static link or a dynamic
+  /// one that answers the time (the fixed frame's pose), else (a root) composed with the identity.
+  enum class FixedLink { kNone, kStatic, kDynamic };
   /// `cache` [ns]: the tf2 buffer's cache time (its samples are pruned alike).
   explicit OneLinkChain(core::TimeNs cache) : cache_(cache) {}
 
   /// The walk is `below` (static links from the base up to `child`), parent -> child on /tf, then
-  /// `above` (static links from `parent` up to the fixed frame); `fixed_has_static_parent`: tf2 stops
-  /// at the fixed frame's own (static) link, else the fixed frame is a root. `newest` [ns]: the newest
-  /// stamp tf2 holds of child (0: none). The samples are kept when the dynamic link is the one before.
+  /// `above` (static links from `parent` up to the fixed frame), then the fixed frame's link.
+  /// `newest` [ns]: the newest stamp tf2 holds of child (0: none). The samples are kept when the
+  /// dynamic link is the one before.
   void setChain(const std::string& child, const std::string& parent, std::vector<Link> below,
-                std::vector<Link> above, bool fixed_has_static_parent, core::TimeNs newest);
+                std::vector<Link> above, FixedLink fixed_link, core::TimeNs newest);
   /// fixed -> base is not such a walk: nothing is answered.
   void clearChain();
   /// A transform of `child` that tf2 took, in arrival order (others' are ignored).
   void add(const std::string& child, const std::string& parent, core::TimeNs stamp,
            const geometry_msgs::Transform& transform);
+  /// A stamp [ns] tf2 took of the fixed frame's own link on /tf, in arrival order.
+  void addFixedLinkStamp(core::TimeNs stamp);
   /// tf2's dynamic caches were cleared.
   void clearSamples();
   /// fixed -> base at `time` [ns] as tf2 would answer it, when the samples kept say so; else false.
@@ -60,7 +65,8 @@ class OneLinkChain {
   std::string child_, parent_;
   Link below_;               // the base in child, accumulated as tf2 does from the base up
   std::vector<Link> above_;  // from parent up
-  bool fixed_has_static_parent_ = false;
+  FixedLink fixed_link_ = FixedLink::kNone;
+  std::deque<core::TimeNs> fixed_link_stamps_;  // sorted: those tf2 holds of the fixed frame's link
   std::deque<Sample> samples_;  // in stamp order: every sample tf2 holds of child from the first on
   core::TimeNs newest_ = 0;     // [ns] the newest stamp tf2 took of child (0: none)
   /// True when tf2 holds no sample of child before the first kept (tf2 answers its earliest as it is).
