@@ -1,7 +1,9 @@
 // TfFeed, the one tf policy of node and bag tool, with a real tf2 buffer: what it keeps, what it leaves
 // out, and what it answers, against the transforms fed (closed form).
 #include <gtest/gtest.h>
+#include <rosbag/view.h>
 #include <tf2/exceptions.h>
+#include <tf2_msgs/TFMessage.h>
 
 #include <algorithm>
 #include <cmath>
@@ -9,6 +11,7 @@
 #include <optional>
 
 #include "lidar_deskew/core/deskew.h"
+#include "lidar_deskew/ros/bag_file.h"
 #include "lidar_deskew/ros/conversions.h"
 #include "lidar_deskew/ros/tf_feed.h"
 #include "support/holds.h"
@@ -710,6 +713,42 @@ TEST(TfFeed, TwistFitOverTheSamplesIsTheFitOverTf2) {
   EXPECT_GT(points, 10'000u);
   EXPECT_EQ(fed.feed.motion().tfLookups(), 0u);
   EXPECT_GT(through_tf2.tfLookups(), 50u);
+}
+
+// A real recording (the Neato's test drive: odom -> base_link on /tf, base_link's static parent left
+// out): at and between every odometry sample, the answers are tf2's, to the bit, and none asks tf2.
+TEST(TfFeed, RecordedOdometryIsAnsweredAsTf2WithoutALookup) {
+  Fed fed(100.0);
+  std::vector<core::TimeNs> stamps;
+  rosbag::Bag bag = ros_adapter::openBagForReading(std::string(LIDAR_DESKEW_SOURCE_DIR) +
+                                                   "/data/neato_xv11/test_drive.bag");
+  for (const rosbag::MessageInstance& message :
+       rosbag::View(bag, rosbag::TopicQuery(std::vector<std::string>{"/tf", "/tf_static"}))) {
+    const auto transforms = message.instantiate<tf2_msgs::TFMessage>();
+    ASSERT_TRUE(transforms);
+    for (const geometry_msgs::TransformStamped& transform : transforms->transforms) {
+      fed.feed.add(transform, message.getTopic() == "/tf_static");
+      if (transform.child_frame_id == "base_link" && message.getTopic() == "/tf")
+        stamps.push_back(ros_adapter::toNs(transform.header.stamp));
+    }
+  }
+  ASSERT_GT(stamps.size(), 80u);
+  std::sort(stamps.begin(), stamps.end());
+  const std::size_t lookups = fed.feed.motion().tfLookups();
+  std::size_t queries = 0;
+  for (std::size_t k = 0; k < stamps.size(); ++k) {
+    for (const core::TimeNs offset : {-1L, 0L, 1L, 7'654'321L}) {
+      expectAsTf2(fed.feed, stamps[k] + offset, "the Neato's odometry");
+      ++queries;
+    }
+    if (k + 1 < stamps.size()) {
+      expectAsTf2(fed.feed, (stamps[k] + stamps[k + 1]) / 2, "the Neato's odometry, between");
+      ++queries;
+    }
+  }
+  // tf2 is asked 1 ns before the first sample and after the last (7.7 ms included).
+  EXPECT_EQ(fed.feed.motion().tfLookups(), lookups + 3);
+  EXPECT_GT(queries, 400u);
 }
 
 }  // namespace
