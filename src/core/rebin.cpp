@@ -479,22 +479,30 @@ void ScanRebinner::readPoints(const Points& points, const BinSweep& sweep) {
   const auto residualOf = [&](std::size_t p, std::size_t j, std::size_t q, bool linked) {
     const double ex = x[q] - x[p], ey = y[q] - y[p];
     const double l2 = ex * ex + ey * ey;
-    cross_product[j] = ex * (y[j] - y[p]) - ey * (x[j] - x[p]);
-    length2[j] = linked ? l2 : 0.0;
-    return l2 != 0.0;
+    cross_product[j] = linked && l2 != 0.0 ? ex * (y[j] - y[p]) - ey * (x[j] - x[p]) : kInfinity;
+    length2[j] = l2;
+    return linked && l2 != 0.0;
   };
+  // Residuals in a loop of arithmetic alone (vectorised); those without both neighbours made infinite
+  // after (never flat).
+  for (std::size_t j = 1; j + 1 < n; ++j) {
+    const double ex = x[j + 1] - x[j - 1], ey = y[j + 1] - y[j - 1];
+    cross_product[j] = ex * (y[j] - y[j - 1]) - ey * (x[j] - x[j - 1]);
+    length2[j] = ex * ex + ey * ey;
+  }
   joined[0] = n > 1 && has_next[0] && isJoined(0, 1);
   std::size_t count = 1;  // candidates[0] is kept for point 0 (below)
   for (std::size_t j = 1; j + 1 < n; ++j) {
     const bool joined_j = has_next[j] && isJoined(j, j + 1);
     joined[j] = joined_j;
-    const bool line = residualOf(j - 1, j, j + 1, has_next[j - 1] && has_next[j]);
+    const bool line = has_next[j - 1] & has_next[j] & (length2[j] != 0.0);
+    cross_product[j] = line ? cross_product[j] : kInfinity;
     candidates[count] = static_cast<std::uint32_t>(j);
     count += joined[j - 1] & joined_j & line;
   }
   joined[n - 1] = wraps_ && isJoined(n - 1, 0);
-  length2[0] = 0.0;
-  length2[n - 1] = 0.0;
+  cross_product[0] = cross_product[n - 1] = kInfinity;
+  length2[0] = length2[n - 1] = 0.0;
   if (wraps_) {
     if (residualOf(n - 2, n - 1, 0, has_next[n - 2]) && joined[n - 2] && joined[n - 1])
       candidates[count++] = static_cast<std::uint32_t>(n - 1);
@@ -537,19 +545,32 @@ void ScanRebinner::classifyLinks() {
   unsigned char* const flat = flat_.data();
   const double* const cross_product = cross_.data();
   const double* const length2 = length2_.data();
-  for (std::size_t j = 0; j < n; ++j)
-    flat[j] = (length2[j] > 0.0) & (cross_product[j] * cross_product[j] <= tolerance2 * length2[j]);
   const unsigned char* const joined = joined_.data();
   const unsigned char* const has_next = has_next_.data();
   Link* const link = link_.data();
   std::uint32_t* const pending = pending_.data();
   std::size_t pending_count = 0;
-  for (std::size_t j = 0; j < n; ++j) {
-    const bool surface = joined[j] & (flat[j] | flat[j + 1 == n ? 0 : j + 1]);
+  const auto isFlat = [&](std::size_t j) {  // (an infinite cross: no neighbours' line)
+    return cross_product[j] * cross_product[j] <= tolerance2 * length2[j];
+  };
+  // Link j - 1 once flat[j] is known (the last link, the full circle's, once flat[0] is).
+  const auto classify = [&](std::size_t j, bool flat_j, bool flat_q) {
+    const bool surface = joined[j] & (flat_j | flat_q);
     link[j] = surface ? Link::kSurface : has_next[j] ? Link::kPending : Link::kNone;
     pending[pending_count] = static_cast<std::uint32_t>(j);
     pending_count += has_next[j] & !surface;
+  };
+  bool flat_previous = n > 0 && isFlat(0);
+  if (n > 0)
+    flat[0] = flat_previous;
+  for (std::size_t j = 1; j < n; ++j) {
+    const bool flat_j = isFlat(j);
+    flat[j] = flat_j;
+    classify(j - 1, flat_previous, flat_j);
+    flat_previous = flat_j;
   }
+  if (n > 0)
+    classify(n - 1, flat_previous, flat[0]);
   pending_count_ = pending_count;
 }
 
@@ -623,9 +644,38 @@ void ScanRebinner::traceContours(const Points& points, const BinSweep& sweep) {
   const auto continues = [](Link link) { return link != Link::kNone && link != Link::kStep; };
   bool left_continues = false;  // the link of j - 1 (resolved) continues a contour
   ends_.clear();
+  // Plain pointers and locals for the common case: a surface whose ends lie between two consecutive rays
+  // (neither on them): it meets the one ray between.
+  const bool running = running_, with_intensities = with_intensities_;
+  const Link* const link = link_.data();
+  const std::int32_t* const position = position_.data();
+  const unsigned char* const on_ray = on_ray_.data();
+  const double* const x = x_.data();
+  const double* const y = y_.data();
+  const double* const ray_cos = ray_cos_.data();
+  const double* const ray_sin = ray_sin_.data();
+  double* const best_range = best_range_.data();
+  float* const best_intensity = best_intensity_.data();
+  const auto crossSurfaceLink = [&](std::size_t j, std::size_t q) {
+    const std::int32_t ray = position[q];
+    if (!(ray == position[j] + 1 && position[j] >= 0 && !(on_ray[j] & 1u) && !(on_ray[q] & 2u)))
+      return crossSurface(j, q, points);
+    const double ex = x[q] - x[j], ey = y[q] - y[j];
+    const double numerator = x[j] * ey - y[j] * ex;
+    const double ray_x = ray_cos[ray], ray_y = ray_sin[ray];
+    const double range = numerator / (ray_x * ey - ray_y * ex);
+    if (range > 0.0 && range < best_range[ray]) {
+      best_range[ray] = range;
+      if (with_intensities) {
+        const double u = std::min(std::max((x[j] * ray_y - y[j] * ray_x) * range / numerator, 0.0), 1.0);
+        best_intensity[ray] = static_cast<float>((1.0 - u) * points[j].intensity + u * points[q].intensity);
+      }
+    }
+    return true;
+  };
   for (std::size_t j = 0; j < n; ++j) {
-    Link kind = link_[j];
-    if (kind == Link::kSurface && running_ && crossSurface(j, j + 1 == n ? 0 : j + 1, points)) {
+    Link kind = link[j];
+    if (kind == Link::kSurface && running && crossSurfaceLink(j, j + 1 == n ? 0 : j + 1)) {
       if (j > 0 && !left_continues)
         ends_.push_back(j);
       left_continues = true;

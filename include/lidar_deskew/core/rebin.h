@@ -188,7 +188,8 @@ class ScanRebinner {
   bool wraps_ = false;                     // the last point neighbours the first (a full circle)
   // Per point, in plain arrays.
   std::vector<double> x_, y_, range_;      // [m] the corrected point and its range
-  std::vector<double> cross_, length2_;    // [m^2] its distance from its neighbours' line as cross / |line|
+  std::vector<double> cross_, length2_;    // [m^2] its distance from its neighbours' line as |cross| /
+                                           // sqrt(length2); cross infinite: no such line
   std::vector<std::int32_t> position_;     // its running bin position (-1: not found)
   std::vector<unsigned char> on_ray_;      // it lies on its position's ray (bit 0) or the next (bit 1)
   std::vector<unsigned char> has_next_;    // j's next point is its neighbour (beam index + 1, or the wrap)
