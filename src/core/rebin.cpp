@@ -180,6 +180,9 @@ constexpr double kMaxRunningRays = 1 << 16;
 constexpr std::size_t kRayPadding = 4;
 /// A point lies on a ray (a segment ending there meets it) when within this times |x| + |y| of it: rounding.
 constexpr double kOnRayTolerance = 1e-9;
+/// The running bin position of a point not found: far below any ray, so that no ray computed from it
+/// (one on or after) is one.
+constexpr std::int32_t kNoPosition = -(1 << 28);
 /// Tolerance on a crossing's segment parameter in double: a ray through a contour's vertex meets it.
 
 }  // namespace
@@ -406,7 +409,7 @@ void ScanRebinner::readPoints(const Points& points, const BinSweep& sweep) {
   const std::size_t n = points.size();
   x_.resize(n);
   y_.resize(n);
-  range_.resize(n);
+  scale_.resize(n);
   cross_.resize(n);
   length2_.resize(n);
   position_.resize(n);
@@ -421,7 +424,7 @@ void ScanRebinner::readPoints(const Points& points, const BinSweep& sweep) {
   // Plain pointers and locals: stores through the byte arrays could alias any member.
   double* const x = x_.data();
   double* const y = y_.data();
-  double* const range = range_.data();
+  double* const scale = scale_.data();
   std::int32_t* const position = position_.data();
   unsigned char* const on_ray = on_ray_.data();
   unsigned char* const has_next = has_next_.data();
@@ -443,14 +446,14 @@ void ScanRebinner::readPoints(const Points& points, const BinSweep& sweep) {
     finite &= size <= std::numeric_limits<double>::max();
     x[j] = px;
     y[j] = py;
-    range[j] = std::sqrt(px * px + py * py);
+    scale[j] = std::max(std::abs(px), std::abs(py));
     const std::uint32_t beam = points[j].beam_index;
     has_next[j > 0 ? j - 1 : 0] = beam == previous_beam + 1;
     previous_beam = beam;
     if (running) {
       double low = 0.0, high = 0.0;
       const std::int32_t found = rays.locate(px, py, hint, low, high);
-      position[j] = found;
+      position[j] = found >= 0 ? found : kNoPosition;
       hint = found >= 0 ? found : hint;
       const double on = kOnRayTolerance * size;
       on_ray[j] = static_cast<unsigned char>((low <= on) | ((-high <= on) << 1));
@@ -471,10 +474,16 @@ void ScanRebinner::readPoints(const Points& points, const BinSweep& sweep) {
   // line, never flat); points with both links joined estimate the noise (candidates, in point order).
   const double min_gap = config_.min_gap;
   const double gap_per_range = config_.gap_factor * sweep.absIncrement();
+  // max(|x|, |y|) is never more than the range (as sqrt rounds it): a gap from it is never wider, so
+  // within it the points are joined without a square root.
   const auto isJoined = [&](std::size_t a, std::size_t b) {
     const double dx = x[b] - x[a], dy = y[b] - y[a];
-    const double gap = min_gap + gap_per_range * std::max(range[a], range[b]);
-    return dx * dx + dy * dy <= gap * gap;
+    const double distance2 = dx * dx + dy * dy;
+    const double low_gap = min_gap + gap_per_range * std::max(scale[a], scale[b]);
+    if (distance2 <= low_gap * low_gap)
+      return true;
+    const double gap = min_gap + gap_per_range * std::max(rangeOf(a), rangeOf(b));
+    return distance2 <= gap * gap;
   };
   const auto residualOf = [&](std::size_t p, std::size_t j, std::size_t q, bool linked) {
     const double ex = x[q] - x[p], ey = y[q] - y[p];
@@ -615,6 +624,10 @@ std::size_t ScanRebinner::previous(std::size_t j) const {
   return has_next_[candidate] && (j > 0 || wraps_) ? candidate : kNoPoint;
 }
 
+double ScanRebinner::rangeOf(std::size_t j) const {
+  return std::sqrt(x_[j] * x_[j] + y_[j] * y_[j]);
+}
+
 double ScanRebinner::bearingOf(std::size_t j) const {
   return fastAtan2(y_[j], x_[j]);
 }
@@ -622,14 +635,14 @@ double ScanRebinner::bearingOf(std::size_t j) const {
 ScanRebinner::Link ScanRebinner::resolveStep(std::size_t j, const BinSweep& sweep) {
   // A waiting link is a depth step when its farther point continues a surface on its other side.
   const std::size_t q = next(j);
-  const bool far_is_next = range_[q] > range_[j];
+  const bool far_is_next = rangeOf(q) > rangeOf(j);
   const std::size_t far_side = far_is_next ? q : previous(j);
   const bool far_continues = far_side != kNoPoint && link_[far_side] == Link::kSurface;
   if (!far_continues)
     return joined_[j] ? Link::kChord : Link::kNone;
   const bool adjacent =
       std::abs(wrapDelta(bearingOf(q) - bearingOf(j))) <= kMaxStepBins * sweep.absIncrement();
-  if (!adjacent || std::abs(range_[q] - range_[j]) <= flat_tolerance_ ||
+  if (!adjacent || std::abs(rangeOf(q) - rangeOf(j)) <= flat_tolerance_ ||
       !continuationIsSure(far_is_next ? j : q, far_is_next ? q : j, far_is_next ? next(q) : previous(j))) {
     return joined_[j] ? Link::kChord : Link::kNone;
   }
@@ -699,13 +712,13 @@ void ScanRebinner::traceContours(const Points& points, const BinSweep& sweep) {
       crossCorner(points, j, q, sweep);
     } else if (kind == Link::kStep) {
       // The far contour's end segment continued behind the near point, over the bearings between.
-      const bool far_is_next = range_[q] > range_[j];
+      const bool far_is_next = rangeOf(q) > rangeOf(j);
       const std::size_t near = far_is_next ? j : q, far = far_is_next ? q : j;
       const std::size_t beyond = far_is_next ? next(q) : previous(j);
       const double delta = wrapDelta(bearingOf(far) - bearingOf(near));
-      extendLine(points, far, x_[far] - x_[beyond], y_[far] - y_[beyond], kInfinity, range_[near],
+      extendLine(points, far, x_[far] - x_[beyond], y_[far] - y_[beyond], kInfinity, rangeOf(near),
                  std::min(bearingOf(near), bearingOf(near) + delta), std::abs(delta), sweep, kMaxStepSlant,
-                 false, range_[far] + flat_tolerance_);
+                 false, rangeOf(far) + flat_tolerance_);
     }
     // Both links of point j are final now (point 0's left one, the full circle's last, comes last). A
     // link of j - 1 that continues a contour joins it to j.
@@ -737,7 +750,7 @@ void ScanRebinner::traceContours(const Points& points, const BinSweep& sweep) {
     // Follow the end segment (from the neighbour, or the corner, towards j) for up to half a bin; the
     // near end of a step only into bins the far contour did not reach.
     const Link end = from_left ? right : left;
-    const bool near_end_of_step = end == Link::kStep && range_[j] < range_[from_left ? q : p];
+    const bool near_end_of_step = end == Link::kStep && rangeOf(j) < rangeOf(from_left ? q : p);
     const std::size_t neighbour = from_left ? p : q;
     const Link kept = from_left ? left : right;
     const std::size_t corner_of = from_left ? p : j;
@@ -786,7 +799,7 @@ bool ScanRebinner::nearlyJoined(std::size_t a, std::size_t b, const BinSweep& sw
 }
 
 double ScanRebinner::joinGap(std::size_t a, std::size_t b, double abs_increment) const {
-  return config_.min_gap + config_.gap_factor * std::max(range_[a], range_[b]) * abs_increment;
+  return config_.min_gap + config_.gap_factor * std::max(rangeOf(a), rangeOf(b)) * abs_increment;
 }
 
 bool ScanRebinner::continuationIsSure(std::size_t near, std::size_t far, std::size_t beyond) {
@@ -794,7 +807,7 @@ bool ScanRebinner::continuationIsSure(std::size_t near, std::size_t far, std::si
     return false;
   const double segment = std::hypot(x_[far] - x_[beyond], y_[far] - y_[beyond]);
   // [m] how far the continuation runs along a wall facing the sensor: to the near point's bearing
-  const double run = range_[far] * std::abs(wrapDelta(bearingOf(far) - bearingOf(near)));
+  const double run = rangeOf(far) * std::abs(wrapDelta(bearingOf(far) - bearingOf(near)));
   return segment > 0.0 && flat_tolerance_ * (1.0 + run / segment) <= kStepErrorBudget;
 }
 

@@ -112,7 +112,8 @@ class ScanRebinner {
   void writeNearestCrossings(float no_return, RebinnedScan& out);
 
   // The rare links' rules (rebin.cpp).
-  /// [rad] point j's bearing (fastAtan2).
+  /// [m] point j's range, [rad] its bearing (fastAtan2).
+  inline double rangeOf(std::size_t j) const;
   inline double bearingOf(std::size_t j) const;
   /// The point after j (beam index + 1, or the full circle's wrap), or kNoPoint; the one before, or kNoPoint.
   inline std::size_t next(std::size_t j) const;
@@ -187,10 +188,10 @@ class ScanRebinner {
   bool bins_in_use_ = false;               // between the first offer and writeNearestCrossings()
   bool wraps_ = false;                     // the last point neighbours the first (a full circle)
   // Per point, in plain arrays.
-  std::vector<double> x_, y_, range_;      // [m] the corrected point and its range
+  std::vector<double> x_, y_, scale_;      // [m] the corrected point, max(|x|, |y|)
   std::vector<double> cross_, length2_;    // [m^2] its distance from its neighbours' line as |cross| /
                                            // sqrt(length2); cross infinite: no such line
-  std::vector<std::int32_t> position_;     // its running bin position (-1: not found)
+  std::vector<std::int32_t> position_;     // its running bin position (negative: not found)
   std::vector<unsigned char> on_ray_;      // it lies on its position's ray (bit 0) or the next (bit 1)
   std::vector<unsigned char> has_next_;    // j's next point is its neighbour (beam index + 1, or the wrap)
   std::vector<unsigned char> joined_;      // j and its next are close enough for one contour
