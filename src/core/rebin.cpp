@@ -196,7 +196,9 @@ struct ScanRebinner::Rays {
   double direction;  // the sign of the increment
   double angle_min, abs_increment;
 
-  double side(std::int32_t ray, double px, double py) const { return side_cos[ray] * py - side_sin[ray] * px; }
+  double side(std::int32_t ray, double px, double py) const {
+    return side_cos[ray] * py - side_sin[ray] * px;
+  }
   std::int32_t next(std::int32_t ray) const { return ray + 1 == count ? 0 : ray + 1; }
   std::int32_t previous(std::int32_t ray) const { return ray == 0 ? count - 1 : ray - 1; }
 
@@ -274,8 +276,12 @@ struct ScanRebinner::Rays {
 };
 
 ScanRebinner::Rays ScanRebinner::rays(double abs_increment) const {
-  return {side_cos_.data(), side_sin_.data(), static_cast<std::int32_t>(ray_count_), direction_,
-          static_cast<double>(rays_grid_.angle_min), abs_increment};
+  return {side_cos_.data(),
+          side_sin_.data(),
+          static_cast<std::int32_t>(ray_count_),
+          direction_,
+          static_cast<double>(rays_grid_.angle_min),
+          abs_increment};
 }
 
 void ScanRebinner::crossRays(const RayPoint& a, const RayPoint& b) {
@@ -338,7 +344,7 @@ bool ScanRebinner::crossSurface(std::size_t a, std::size_t b, const Points& poin
   const std::int32_t quarter = ray_count / 4;
   if (forward > quarter) {
     if (forward < ray_count - quarter)
-      return false;  // a quarter turn wide or more: by bearing
+      return false;   // a quarter turn wide or more: by bearing
     std::swap(a, b);  // b before a in the grid's direction
     forward = ray_count - forward;
   }
@@ -743,7 +749,8 @@ void ScanRebinner::traceContours(const Points& points, const BinSweep& sweep) {
     };
     if (!continues(left) && !continues(right)) {
       // Lone return: a facet facing the sensor.
-      extendLine(points, j, -y_[j], x_[j], endReach(j, j), 0.0, bearingOf(j) - half_bin, abs_increment, sweep);
+      extendLine(points, j, -y_[j], x_[j], endReach(j, j), 0.0, bearingOf(j) - half_bin, abs_increment,
+                 sweep);
       continue;
     }
     const bool from_left = continues(left);
@@ -844,7 +851,11 @@ void ScanRebinner::crossCorner(const Points& points, std::size_t j, std::size_t 
     const Rays rays = this->rays(sweep.absIncrement());
     const auto rayPoint = [&](std::size_t p) {
       const std::int32_t ray = position_[p];
-      return RayPoint{x_[p], y_[p], ray, rays.side(ray, x_[p], y_[p]), rays.side(ray + 1, x_[p], y_[p]),
+      return RayPoint{x_[p],
+                      y_[p],
+                      ray,
+                      rays.side(ray, x_[p], y_[p]),
+                      rays.side(ray + 1, x_[p], y_[p]),
                       points[p].intensity};
     };
     RayPoint corner{cx, cy, -1, 0.0, 0.0, j_intensity};

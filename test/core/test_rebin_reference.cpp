@@ -78,16 +78,16 @@ Comparison compare(const sim::Scenario& scenario, bool noise, unsigned seed) {
   core::RebinnedScan got, expected, truth_scan;
   for (int k = 0; k / scenario.lidar.rate < scenario.duration; ++k) {
     const double start = k / scenario.lidar.rate;
-    sim::SimulatedScan simulated = sim::simulateScan(scenario.world, trajectory, scenario.mount, scenario.lidar,
-                                                     kEpoch, start, noise ? &rng : nullptr);
+    sim::SimulatedScan simulated = sim::simulateScan(scenario.world, trajectory, scenario.mount,
+                                                     scenario.lidar, kEpoch, start, noise ? &rng : nullptr);
     if (k % 2 == 1) {  // every other scan carries intensities (interpolated along the contour)
       simulated.scan.intensities.resize(simulated.scan.ranges.size());
       for (std::size_t i = 0; i < simulated.scan.ranges.size(); ++i)
         simulated.scan.intensities[i] = static_cast<float>(100 + (i * 37) % 1000);
     }
     // Poses as tf gives them: samples at 50 Hz, linear between (so the correction keeps some error).
-    const core::PoseSamples samples = test::sampleTrajectory(trajectory, kEpoch, std::max(0.0, start - 0.1),
-                                                             start + scenario.lidar.sweepDuration() + 0.1, 0.02);
+    const core::PoseSamples samples = test::sampleTrajectory(
+        trajectory, kEpoch, std::max(0.0, start - 0.1), start + scenario.lidar.sweepDuration() + 0.1, 0.02);
     core::DeskewedScan corrected;
     deskewer.deskew(simulated.scan, core::resolveTiming(simulated.scan, {}), test::toMrpt(scenario.mount),
                     samples, corrected);
@@ -97,7 +97,8 @@ Comparison compare(const sim::Scenario& scenario, bool noise, unsigned seed) {
     rebinner.rebin(corrected, grid, no_return, got);
     reference.rebin(corrected, grid, no_return, expected);
     core::DeskewedScan truth = corrected;
-    const auto true_points = test::truePointsAtReference(simulated, corrected, trajectory, scenario.mount, kEpoch);
+    const auto true_points =
+        test::truePointsAtReference(simulated, corrected, trajectory, scenario.mount, kEpoch);
     for (std::size_t j = 0; j < truth.points.size(); ++j)
       truth.points[j].position.head<2>() = true_points[j];
     truth_rebinner.rebin(truth, grid, no_return, truth_scan);
@@ -219,15 +220,17 @@ TEST(RebinReference, NeverWorseOnOddGridsFoldOversAndDropouts) {
             expected.ranges[b] = expected.ranges[b] == no_return ? INFINITY : expected.ranges[b];
             truth_scan.ranges[b] = truth_scan.ranges[b] == no_return ? INFINITY : truth_scan.ranges[b];
           }
-          const sim::Pose2 laser = motion.pose(core::nsToSeconds(corrected.reference_time - kEpoch)).compose(mount);
+          const sim::Pose2 laser =
+              motion.pose(core::nsToSeconds(corrected.reference_time - kEpoch)).compose(mount);
           BinMetrics old_metrics, new_metrics;
           old_metrics.add(expected, truth_scan, world, laser, grid);
           new_metrics.add(got, truth_scan, world, laser, grid);
           if (new_metrics.over_1cm > old_metrics.over_1cm || new_metrics.emptied > old_metrics.emptied) {
-            std::printf("%d beams, clockwise %d, %.0f rad/s, noise %d: > 10 mm old %zu new %zu, emptied old %zu "
-                        "new %zu\n",
-                        model.beams, clockwise, turn_rate, noise, old_metrics.over_1cm, new_metrics.over_1cm,
-                        old_metrics.emptied, new_metrics.emptied);
+            std::printf(
+                "%d beams, clockwise %d, %.0f rad/s, noise %d: > 10 mm old %zu new %zu, emptied old %zu "
+                "new %zu\n",
+                model.beams, clockwise, turn_rate, noise, old_metrics.over_1cm, new_metrics.over_1cm,
+                old_metrics.emptied, new_metrics.emptied);
           }
           old_total.over_1cm += old_metrics.over_1cm;
           old_total.emptied += old_metrics.emptied;

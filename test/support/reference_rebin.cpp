@@ -419,7 +419,7 @@ void ReferenceRebinner::updateRays(const AngleGrid& grid) {
 }
 
 void ReferenceRebinner::rebin(const DeskewedScan& corrected, const AngleGrid& grid, float no_return,
-                         RebinnedScan& out) {
+                              RebinnedScan& out) {
   checkGrid(grid);
   updateRays(grid);
   if (bins_in_use_) {  // the last scan stopped (an allocation failed) before leaving its bins empty
@@ -829,8 +829,8 @@ std::size_t ReferenceRebinner::previous(std::size_t j) const {
   return point_[candidate].next == j ? candidate : kNoPoint;
 }
 
-bool ReferenceRebinner::findCorner(std::size_t a0, std::size_t a, std::size_t b, std::size_t b1, double& corner_x,
-                              double& corner_y) const {
+bool ReferenceRebinner::findCorner(std::size_t a0, std::size_t a, std::size_t b, std::size_t b1,
+                                   double& corner_x, double& corner_y) const {
   const double ax = point_[a].x, ay = point_[a].y, bx = point_[b].x, by = point_[b].y;
   const double dax = ax - point_[a0].x, day = ay - point_[a0].y;  // along the wall before a, towards a
   const double dbx = point_[b1].x - bx, dby = point_[b1].y - by;  // along the wall after b, away from b
@@ -854,7 +854,8 @@ bool ReferenceRebinner::findCorner(std::size_t a0, std::size_t a, std::size_t b,
   return to_a2 <= 4.0 * chord2 && to_b2 <= 4.0 * chord2;  // plausibly near both
 }
 
-void ReferenceRebinner::crossCorner(const Points& points, std::size_t j, std::size_t q, const BinSweep& sweep) {
+void ReferenceRebinner::crossCorner(const Points& points, std::size_t j, std::size_t q,
+                                    const BinSweep& sweep) {
   const float j_intensity = points[j].intensity, q_intensity = points[q].intensity;
   const double cx = corner_x_[j], cy = corner_y_[j];
   if (running_ && point_[j].x * cx + point_[j].y * cy > 0.0 && cx * point_[q].x + cy * point_[q].y > 0.0 &&
@@ -877,9 +878,9 @@ void ReferenceRebinner::crossCorner(const Points& points, std::size_t j, std::si
                         q_intensity, sweep);
 }
 
-void ReferenceRebinner::crossSegmentByBearing(double ax, double ay, double a_bearing, float a_intensity, double bx,
-                                         double by, double b_bearing, float b_intensity,
-                                         const BinSweep& sweep) {
+void ReferenceRebinner::crossSegmentByBearing(double ax, double ay, double a_bearing, float a_intensity,
+                                              double bx, double by, double b_bearing, float b_intensity,
+                                              const BinSweep& sweep) {
   const double delta = wrapDelta(b_bearing - a_bearing);
   if (std::abs(delta) >= M_PI - 1e-6)
     return;  // passes through the sensor: not a visible surface
@@ -900,8 +901,8 @@ void ReferenceRebinner::crossSegmentByBearing(double ax, double ay, double a_bea
 }
 
 void ReferenceRebinner::extendLine(const Points& points, std::size_t p, double dx, double dy, double reach,
-                              double min_range, double low, double width, const BinSweep& sweep,
-                              double max_slant, bool only_empty, double max_range) {
+                                   double min_range, double low, double width, const BinSweep& sweep,
+                                   double max_slant, bool only_empty, double max_range) {
   const double px = point_[p].x, py = point_[p].y;
   const double direction_norm = std::sqrt(dx * dx + dy * dy);
   if (direction_norm == 0.0)

@@ -22,7 +22,8 @@ class ReferenceRebinner {
   explicit ReferenceRebinner(const core::RebinConfig& config = core::RebinConfig());
 
   /// What core::ScanRebinner::rebin did before issue 35 (its contract is in core/rebin.h).
-  void rebin(const core::DeskewedScan& corrected, const core::AngleGrid& grid, float no_return, core::RebinnedScan& out);
+  void rebin(const core::DeskewedScan& corrected, const core::AngleGrid& grid, float no_return,
+             core::RebinnedScan& out);
 
  private:
   class BinSweep;  // finds the bins whose rays lie in an angle interval (defined in rebin.cpp)
@@ -65,7 +66,8 @@ class ReferenceRebinner {
   inline double bearingOf(std::size_t j);
   /// [m] point j's distance from the line through its neighbours (which it has, not on one point).
   inline double residual(std::size_t j) const;
-  /// [m] the core::RebinConfig gap for points a and b (at the larger of their ranges; a == b for a lone point).
+  /// [m] the core::RebinConfig gap for points a and b (at the larger of their ranges; a == b for a lone
+  /// point).
   inline double joinGap(std::size_t a, std::size_t b, double abs_increment);
   /// Whether neighbours a and b, farther apart than the gap, can still make one surface (when one of them
   /// is flat) or a corner's wall: at most kMaxStepBins apart in bearing and a few gaps apart in distance

@@ -153,8 +153,8 @@ class ScanRebinner {
   /// no running position or the segment is a quarter turn wide or more.
   inline bool crossSurface(std::size_t a, std::size_t b, const Points& points);
   /// Offers `count` rays from `ray` on their crossing with the segment a -> b, intensity interpolated.
-  inline void offerRays(std::int32_t ray, std::int32_t count, double ax, double ay, float a_intensity, double bx,
-                        double by, float b_intensity);
+  inline void offerRays(std::int32_t ray, std::int32_t count, double ax, double ay, float a_intensity,
+                        double bx, double by, float b_intensity);
   /// The segment (ax, ay) -> (bx, by) at bearings [rad]: offers every bin whose ray crosses it (found by
   /// bearing: for grids without running positions, and segments a quarter turn wide or more).
   inline void crossSegmentByBearing(double ax, double ay, double a_bearing, float a_intensity, double bx,
@@ -179,14 +179,14 @@ class ScanRebinner {
   /// go on past the grid's last bin to complete the turn: ray_count_ >= rays_grid_.count.
   bool running_ = false;
   std::size_t ray_count_ = 0;
-  double direction_ = 1.0;                // the sign of angle_increment
+  double direction_ = 1.0;                   // the sign of angle_increment
   std::vector<double> ray_cos_, ray_sin_;    // unit ray direction of every ray (and kRayPadding copies)
   std::vector<double> side_cos_, side_sin_;  // the same times direction_ (for Rays::side())
-  std::vector<double> best_range_;         // [m] nearest crossing per bin so far (+inf between scans)
-  std::vector<float> best_intensity_;      // its intensity (0 between scans)
-  bool with_intensities_ = false;          // the scan carries intensities
-  bool bins_in_use_ = false;               // between the first offer and writeNearestCrossings()
-  bool wraps_ = false;                     // the last point neighbours the first (a full circle)
+  std::vector<double> best_range_;           // [m] nearest crossing per bin so far (+inf between scans)
+  std::vector<float> best_intensity_;        // its intensity (0 between scans)
+  bool with_intensities_ = false;            // the scan carries intensities
+  bool bins_in_use_ = false;                 // between the first offer and writeNearestCrossings()
+  bool wraps_ = false;                       // the last point neighbours the first (a full circle)
   // Per point, in plain arrays.
   std::vector<double> x_, y_, scale_;      // [m] the corrected point, max(|x|, |y|)
   std::vector<double> cross_, length2_;    // [m^2] its distance from its neighbours' line as |cross| /
@@ -198,13 +198,13 @@ class ScanRebinner {
   std::vector<unsigned char> flat_;        // j lies on the line through its two joined neighbours
   std::vector<std::uint32_t> candidates_;  // [candidate_begin_, candidate_end_): points whose residual
   std::size_t candidate_begin_ = 0, candidate_end_ = 0;  // estimates the noise (both links joined)
-  std::vector<std::uint32_t> pending_;     // the first pending_count_: links classifyRareLinks() decides
+  std::vector<std::uint32_t> pending_;  // the first pending_count_: links classifyRareLinks() decides
   std::size_t pending_count_ = 0;
-  std::vector<Link> link_;                 // what joins j and its next
+  std::vector<Link> link_;                   // what joins j and its next
   std::vector<double> corner_x_, corner_y_;  // [m] the corner of a kCorner link
-  std::vector<double> noise_sample_;       // [m] scratch for the noise estimate
-  std::vector<std::size_t> ends_;          // points where a contour ends (or a lone return)
-  double flat_tolerance_ = 0.0;            // [m] of the last scan
+  std::vector<double> noise_sample_;         // [m] scratch for the noise estimate
+  std::vector<std::size_t> ends_;            // points where a contour ends (or a lone return)
+  double flat_tolerance_ = 0.0;              // [m] of the last scan
 };
 
 }  // namespace lidar_deskew::core
