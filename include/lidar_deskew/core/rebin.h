@@ -92,11 +92,13 @@ class ScanRebinner {
   };
 
   // The steps of rebin(), in order. The common case (points on surfaces, one ray between neighbours) runs
-  // in float over plain arrays, in loops the compiler vectorises; bearings (atan2), square roots and
-  // doubles only for the rare links (corners, steps, grazing walls) and contour ends.
+  // over plain arrays in loops of arithmetic and bytes; bearings (atan2) and square roots only for the
+  // rare links (corners, steps, grazing walls) and contour ends. Double, not float: float's rounding
+  // moved ranges by micrometres, enough to move bins across the 10 mm mark of the scan metrics.
   /// Recomputes the rays when `grid` differs from the one they were made for.
   void updateRays(const AngleGrid& grid);
-  /// Fills x_, y_, range_, has_next_, position_ (the running bin positions), joined_ and the residuals;
+  /// Fills x_, y_, scale_, has_next_, position_ (the running bin positions), on_ray_, joined_, the
+  /// residuals and the noise candidates;
   /// throws InvalidInput("points") for a non-finite point.
   void readPoints(const Points& points, const BinSweep& sweep);
   /// The scan's flat tolerance (from the median residual) and link_: surfaces where one of a joined pair is
