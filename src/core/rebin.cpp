@@ -331,9 +331,27 @@ void ScanRebinner::offerRays(std::int32_t ray, std::int32_t count, double ax, do
   }
 }
 
+unsigned ScanRebinner::onRay(std::size_t j) const {
+  const Rays rays = this->rays(0.0);
+  const std::int32_t ray = position_[j];
+  const double on = kOnRayTolerance * (std::abs(x_[j]) + std::abs(y_[j]));
+  return (rays.side(ray, x_[j], y_[j]) <= on ? 1u : 0u) | (-rays.side(ray + 1, x_[j], y_[j]) <= on ? 2u : 0u);
+}
+
+void ScanRebinner::offerOwnRay(std::size_t j, const Points& points) {
+  if (!running_ || position_[j] < 0)
+    return;
+  const unsigned on = onRay(j);
+  const std::size_t ray = static_cast<std::size_t>(position_[j]);
+  if (on & 1u)
+    offer(ray, rangeOf(j), points[j].intensity);
+  if (on & 2u)
+    offer(ray + 1 == ray_count_ ? 0 : ray + 1, rangeOf(j), points[j].intensity);
+}
+
 bool ScanRebinner::crossSurface(std::size_t a, std::size_t b, const Points& points) {
-  // As crossRays(), with whether each point lies on its position's ray or the next decided once per point
-  // (on_ray_); only for segments less than a quarter turn wide, found in either direction.
+  // As crossRays(), with whether each point lies on its position's ray or the next (onRay()); only for
+  // segments less than a quarter turn wide, found in either direction.
   const std::int32_t ray_count = static_cast<std::int32_t>(ray_count_);
   const std::int32_t* const position = position_.data();
   if ((position[a] | position[b]) < 0)
@@ -347,7 +365,7 @@ bool ScanRebinner::crossSurface(std::size_t a, std::size_t b, const Points& poin
     std::swap(a, b);  // b before a in the grid's direction
     forward = ray_count - forward;
   }
-  const unsigned on_a = on_ray_[a], on_b = on_ray_[b];
+  const unsigned on_a = onRay(a), on_b = onRay(b);
   // bit 0: on its position's ray, bit 1: on the next ray; both points between the same two rays: either
   // one on them counts.
   const unsigned first_bit = (on_a | (forward == 0 ? on_b : 0u)) & 1u;
@@ -418,7 +436,6 @@ void ScanRebinner::readPoints(const Points& points, const BinSweep& sweep) {
   cross_.resize(n);
   length2_.resize(n);
   position_.resize(n);
-  on_ray_.resize(n);
   has_next_.resize(n);
   joined_.resize(n);
   candidates_.resize(n + 1);
@@ -431,7 +448,6 @@ void ScanRebinner::readPoints(const Points& points, const BinSweep& sweep) {
   double* const y = y_.data();
   double* const scale = scale_.data();
   std::int32_t* const position = position_.data();
-  unsigned char* const on_ray = on_ray_.data();
   unsigned char* const has_next = has_next_.data();
   unsigned char* const joined = joined_.data();
   double* const cross_product = cross_.data();
@@ -460,8 +476,6 @@ void ScanRebinner::readPoints(const Points& points, const BinSweep& sweep) {
       const std::int32_t found = rays.locate(px, py, hint, low, high);
       position[j] = found >= 0 ? found : kNoPosition;
       hint = found >= 0 ? found : hint;
-      const double on = kOnRayTolerance * size;
-      on_ray[j] = static_cast<unsigned char>((low <= on) | ((-high <= on) << 1));
     }
   }
   if (!finite) {
@@ -662,12 +676,13 @@ void ScanRebinner::traceContours(const Points& points, const BinSweep& sweep) {
   const auto continues = [](Link link) { return link != Link::kNone && link != Link::kStep; };
   bool left_continues = false;  // the link of j - 1 (resolved) continues a contour
   ends_.clear();
+  if (n > 0 && previous(0) == kNoPoint)
+    offerOwnRay(0, points);  // no link before it
   // Plain pointers and locals for the common case: a surface whose ends lie between two consecutive rays
   // (neither on them): it meets the one ray between.
   const bool running = running_, with_intensities = with_intensities_;
   const Link* const link = link_.data();
   const std::int32_t* const position = position_.data();
-  const unsigned char* const on_ray = on_ray_.data();
   const double* const x = x_.data();
   const double* const y = y_.data();
   const double* const ray_cos = ray_cos_.data();
@@ -675,8 +690,10 @@ void ScanRebinner::traceContours(const Points& points, const BinSweep& sweep) {
   double* const best_range = best_range_.data();
   float* const best_intensity = best_intensity_.data();
   const auto crossSurfaceLink = [&](std::size_t j, std::size_t q) {
+    // One ray between the two positions: it meets the segment. (A point on its position's ray or the next
+    // meets it in its link on the other side, or offerOwnRay() there.)
     const std::int32_t ray = position[q];
-    if (!(ray == position[j] + 1 && position[j] >= 0 && !(on_ray[j] & 1u) && !(on_ray[q] & 2u)))
+    if (!(ray == position[j] + 1 && position[j] >= 0))
       return crossSurface(j, q, points);
     const double ex = x[q] - x[j], ey = y[q] - y[j];
     const double numerator = x[j] * ey - y[j] * ex;
@@ -704,9 +721,15 @@ void ScanRebinner::traceContours(const Points& points, const BinSweep& sweep) {
       kind = resolveStep(j, sweep);  // a step's far side is only compared with kSurface: order is free
       link_[j] = kind;
     }
-    if (kind == Link::kSurface ||
-        (kind == Link::kChord &&
-         !(precise && std::hypot(x_[q] - x_[j], y_[q] - y_[j]) > 2.0 * kGuessBudget))) {
+    const bool segment =
+        kind == Link::kSurface ||
+        (kind == Link::kChord && !(precise && std::hypot(x_[q] - x_[j], y_[q] - y_[j]) > 2.0 * kGuessBudget));
+    if (!segment && kind != Link::kCorner) {  // no crossing through its ends: a ray on one is its own
+      offerOwnRay(j, points);
+      if (q != kNoPoint)
+        offerOwnRay(q, points);
+    }
+    if (segment) {
       // A segment (a chord longer than 2 kGuessBudget: its surface cannot be told, left empty). Less than
       // a quarter turn wide (so not through the sensor): by running bin positions.
       if (!(running_ && crossSurface(j, q, points))) {

@@ -97,7 +97,7 @@ class ScanRebinner {
   // moved ranges by micrometres, enough to move bins across the 10 mm mark of the scan metrics.
   /// Recomputes the rays when `grid` differs from the one they were made for.
   void updateRays(const AngleGrid& grid);
-  /// Fills x_, y_, scale_, has_next_, position_ (the running bin positions), on_ray_, joined_, the
+  /// Fills x_, y_, scale_, has_next_, position_ (the running bin positions), joined_, the
   /// residuals and the noise candidates;
   /// throws InvalidInput("points") for a non-finite point.
   void readPoints(const Points& points, const BinSweep& sweep);
@@ -151,7 +151,11 @@ class ScanRebinner {
   /// The segment a -> b (less than a quarter turn wide): offers the rays between their positions, and the
   /// ray at either end that the end lies on, intensity interpolated.
   inline void crossRays(const RayPoint& a, const RayPoint& b);
-  /// The same for surface link a -> b, the common case, from on_ray_; false (nothing done) when a point has
+  /// Whether point j lies on its position's ray (bit 0) or the next (bit 1), within rounding; offers that
+  /// ray point j's own range (where no segment through j crosses it).
+  inline unsigned onRay(std::size_t j) const;
+  inline void offerOwnRay(std::size_t j, const Points& points);
+  /// The same for surface link a -> b, the common case, from onRay(); false (nothing done) when a point has
   /// no running position or the segment is a quarter turn wide or more.
   inline bool crossSurface(std::size_t a, std::size_t b, const Points& points);
   /// Offers `count` rays from `ray` on their crossing with the segment a -> b, intensity interpolated.
@@ -194,7 +198,6 @@ class ScanRebinner {
   std::vector<double> cross_, length2_;    // [m^2] its distance from its neighbours' line as |cross| /
                                            // sqrt(length2); cross infinite: no such line
   std::vector<std::int32_t> position_;     // its running bin position (negative: not found)
-  std::vector<unsigned char> on_ray_;      // it lies on its position's ray (bit 0) or the next (bit 1)
   std::vector<unsigned char> has_next_;    // j's next point is its neighbour (beam index + 1, or the wrap)
   std::vector<unsigned char> joined_;      // j and its next are close enough for one contour
   std::vector<unsigned char> flat_;        // j lies on the line through its two joined neighbours
