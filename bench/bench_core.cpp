@@ -77,7 +77,7 @@ BENCHMARK(BM_DeskewScan)
     ->Args({1440, 1})
     ->Args({1440, 0});
 
-/// Re-binning one corrected scan with `Rebinner` (core::ScanRebinner, or the one issue 25 replaced).
+/// Re-binning one corrected scan with `Rebinner` (core::ScanRebinner, or the one issue 35 replaced).
 template <typename Rebinner>
 void rebinScan(benchmark::State& state) {
   Fixture fixture(static_cast<int>(state.range(0)));
@@ -98,7 +98,7 @@ void BM_Rebin(benchmark::State& state) {
   rebinScan<core::ScanRebinner>(state);
 }
 BENCHMARK(BM_Rebin)->ArgNames({"beams"})->Arg(360)->Arg(1080)->Arg(1440);
-/// The re-binner before issue 25 (test/support/reference_rebin.h), for the comparison in one run.
+/// The re-binner before issue 35 (test/support/reference_rebin.h), for the comparison in one run.
 void BM_RebinReference(benchmark::State& state) {
   rebinScan<test::ReferenceRebinner>(state);
 }

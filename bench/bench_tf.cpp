@@ -22,7 +22,7 @@
 #include "lidar_deskew/core/deskew.h"
 #include "lidar_deskew/ros/conversions.h"
 #include "lidar_deskew/ros/scan_processor.h"
-#include "lidar_deskew/ros/tf_motion.h"
+#include "lidar_deskew/ros/tf_feed.h"
 #include "lidar_deskew/sim/sim.h"
 #include "summary_run.h"
 
@@ -47,33 +47,30 @@ sim::LidarModel modelNamed(const std::string& name) {
 /// [s] of scans in a recording: long enough that the scans cycle back to the first (which restarts the
 /// twist fit's cache, as a bag played in a loop does) rarely, as on a live stream.
 constexpr double kRecordingSeconds = 10.0;
-/// [s] what tf2's buffer and TfMotionSource's sample times keep: all of a recording (TfMotionSource's
-/// default keeps 10 s, and would lose the first samples of the recording's 10.3 s of tf).
+/// [s] what the tf feed keeps: all of a recording (the recording's 10.3 s of tf).
 constexpr double kKeptSeconds = 2.0 * kRecordingSeconds + 10.0;
 
-/// Scans of one sensor over kRecordingSeconds of the arc, with tf for all of it.
+/// Scans of one sensor over kRecordingSeconds of the arc, with tf for all of it, fed as the node feeds
+/// it (TfFeed: tf2's buffer, and the samples of the one dynamic link).
 struct Recording {
   explicit Recording(const sim::LidarModel& lidar)
       : model(lidar),
         trajectory({-2.0, -1.0, 0.3}, 6.0, 5.0),
-        buffer(ros::Duration(kKeptSeconds)),
-        motion(buffer, "odom", "base_link", core::secondsToNs(kKeptSeconds)) {
+        tf("odom", "base_link", kKeptSeconds, nullptr) {
     const sim::World world = sim::World::demoRoom();
     geometry_msgs::TransformStamped transform;
     transform.header.frame_id = "base_link";
     transform.child_frame_id = "laser";
     transform.header.stamp = ros_adapter::toRosTime(kEpoch);
     transform.transform = ros_adapter::toTransform(toMrpt(mount));
-    buffer.setTransform(transform, "bench", true);
+    tf.add(transform, true);
     transform.header.frame_id = "odom";
     transform.child_frame_id = "base_link";
-    motion.setSingleLink(true);  // odom -> base_link is one dynamic link: its stamps are all its samples
     for (int k = -5; k <= static_cast<int>(kRecordingSeconds / 0.02) + 10; ++k) {
       const double t = 0.02 * k;
       transform.header.stamp = ros_adapter::toRosTime(kEpoch + core::secondsToNs(t));
       transform.transform = ros_adapter::toTransform(toMrpt(trajectory.pose(t)));
-      buffer.setTransform(transform, "bench", false);
-      motion.addSampleTime(ros_adapter::toNs(transform.header.stamp));
+      tf.add(transform, false);
     }
     for (double start = 0.0; start + 1.0 / model.rate <= kRecordingSeconds + 1e-9;
          start += 1.0 / model.rate) {
@@ -100,8 +97,9 @@ struct Recording {
   sim::LidarModel model;
   sim::ArcTrajectory trajectory;
   sim::Pose2 mount{0.25, 0.05, 0.1};
-  tf2::BufferCore buffer;
-  ros_adapter::TfMotionSource motion;
+  ros_adapter::TfFeed tf;
+  tf2::BufferCore& buffer = tf.buffer();
+  const ros_adapter::TfMotionSource& motion = tf.motion();
   std::vector<sim::SimulatedScan> simulated;
   std::vector<sensor_msgs::LaserScan> messages;
 };

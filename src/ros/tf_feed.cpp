@@ -76,11 +76,12 @@ bool TfFeed::add(const geometry_msgs::TransformStamped& transform_in, bool is_st
     }
     recordStatic(transform);
     setParent(child, parent);
+    planChain();  // a static of the chain may have changed
     return true;
   }
 
   if (moving_.insert(child).second) {
-    chain_ = chainChildren();
+    chainChanged();
     const auto kept = statics_.find(child);
     if (kept != statics_.end()) {
       ignored_statics_.insert(child);
@@ -157,6 +158,9 @@ bool TfFeed::add(const geometry_msgs::TransformStamped& transform_in, bool is_st
     // One dynamic link straight from fixed to base: its stamps are all of the chain's samples.
     motion_.setSingleLink(chain_.size() == 1 && parent == fixed_frame_ && child == base_frame_);
   }
+  motion_.chain().add(child, parent, stamp, transform.transform);  // its own link's only
+  if (child == fixed_frame_)
+    motion_.chain().addFixedLinkStamp(stamp);  // a localiser's map -> odom
   return true;
 }
 
@@ -295,7 +299,7 @@ void TfFeed::clearMotion(const geometry_msgs::TransformStamped* first) {
   std::stable_sort(starting.begin(), starting.end(),
                    [](const auto& a, const auto& b) { return a.header.stamp < b.header.stamp; });
   buffer_->clear();
-  motion_.clearSampleTimes();
+  motion_.clearSamples();
   newest_link_stamps_.clear();
   newest_dynamic_stamps_.clear();
   dynamic_parents_.clear();
@@ -331,11 +335,12 @@ void TfFeed::rebuildWithout(const std::string& child) {
     rebuilt->setTransform(history.back().transform, "tf_static", true);
   buffer_ = std::move(rebuilt);
   motion_.setBuffer(*buffer_);
-  motion_.clearSampleTimes();
+  motion_.clearSamples();
   newest_link_stamps_.clear();
   newest_dynamic_stamps_.clear();
   backward_.clear();
   held_.clear();
+  planChain();
 }
 
 void TfFeed::setParent(const std::string& child, const std::string& parent) {
@@ -343,7 +348,59 @@ void TfFeed::setParent(const std::string& child, const std::string& parent) {
   if (known == parent)
     return;  // the tree is as it was: so is the chain (not walked again for every transform)
   known = parent;
+  chainChanged();
+}
+
+void TfFeed::chainChanged() {
   chain_ = chainChildren();
+  planChain();
+}
+
+void TfFeed::planChain() {
+  // tf2's walk from the base up to the fixed frame, through the parents as last seen: one dynamic link
+  // and statics around it; the fixed frame's own link, if any, read as tf2 reads it.
+  OneLinkChain& chain = motion_.chain();
+  std::vector<OneLinkChain::Link> below, above;
+  const std::string* moving = nullptr;
+  const std::string* moving_parent = nullptr;
+  std::string frame = base_frame_;
+  for (std::size_t steps = 0; frame != fixed_frame_; ++steps) {
+    const auto parent = parents_.find(frame);
+    if (parent == parents_.end() || steps > parents_.size()) {
+      chain.clearChain();  // not connected (or a loop)
+      return;
+    }
+    if (moving_.count(frame) > 0) {
+      if (moving) {
+        chain.clearChain();  // a second dynamic link
+        return;
+      }
+      moving = &parent->first;
+      moving_parent = &parent->second;
+    } else {
+      const auto kept = statics_.find(frame);
+      if (kept == statics_.end()) {
+        chain.clearChain();
+        return;
+      }
+      const geometry_msgs::Transform& link = kept->second.back().transform.transform;  // tf2's
+      (moving ? above : below)
+          .push_back({tf2::Quaternion(link.rotation.x, link.rotation.y, link.rotation.z, link.rotation.w),
+                      tf2::Vector3(link.translation.x, link.translation.y, link.translation.z)});
+    }
+    frame = parent->second;
+  }
+  if (!moving) {
+    chain.clearChain();
+    return;
+  }
+  const OneLinkChain::FixedLink fixed_link =
+      moving_.count(fixed_frame_) > 0    ? OneLinkChain::FixedLink::kDynamic
+      : statics_.count(fixed_frame_) > 0 ? OneLinkChain::FixedLink::kStatic
+                                         : OneLinkChain::FixedLink::kNone;
+  const auto newest = newest_dynamic_stamps_.find(*moving);
+  chain.setChain(*moving, *moving_parent, std::move(below), std::move(above), fixed_link,
+                 newest == newest_dynamic_stamps_.end() ? 0 : newest->second);
 }
 
 std::set<std::string> TfFeed::chainChildren() const {

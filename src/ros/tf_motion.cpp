@@ -7,11 +7,158 @@
 #include "lidar_deskew/ros/conversions.h"
 
 namespace lidar_deskew::ros_adapter {
+namespace {
+
+/// One step of tf2's walk up the tree (BufferCore's TransformAccum::accum): `link` composed on the left
+/// of what was accumulated.
+void accumulate(const OneLinkChain::Link& link, OneLinkChain::Link& accumulated) {
+  accumulated.translation = tf2::quatRotate(link.rotation, accumulated.translation) + link.translation;
+  accumulated.rotation = link.rotation * accumulated.rotation;
+}
+
+/// [s] A duration of `ns` >= 0 as ros::Duration::toSec gives it: whole seconds plus 1e-9 times the rest.
+double durationSeconds(core::TimeNs ns) {
+  return static_cast<double>(ns / 1'000'000'000) + 1e-9 * static_cast<double>(ns % 1'000'000'000);
+}
+
+OneLinkChain::Link identityLink() {
+  return {tf2::Quaternion(0.0, 0.0, 0.0, 1.0), tf2::Vector3(0.0, 0.0, 0.0)};
+}
+
+}  // namespace
+
+void OneLinkChain::setChain(const std::string& child, const std::string& parent, std::vector<Link> below,
+                            std::vector<Link> above, FixedLink fixed_link, core::TimeNs newest) {
+  if (!valid_ || child != child_ || parent != parent_) {
+    // Another dynamic link: its samples start with the next one in order (tf2 may hold older ones).
+    samples_.clear();
+    child_ = child;
+    parent_ = parent;
+    newest_ = newest;
+    complete_ = newest == 0;
+    before_ = newest;
+  }
+  valid_ = true;
+  below_ = identityLink();
+  for (const Link& link : below)
+    accumulate(link, below_);
+  above_ = std::move(above);
+  fixed_link_ = fixed_link;
+}
+
+void OneLinkChain::clearChain() {
+  valid_ = false;
+  samples_.clear();
+}
+
+void OneLinkChain::addFixedLinkStamp(core::TimeNs stamp) {
+  // As tf2's TimeCache keeps its stamps: in order (no repeats: tf2 refuses them), pruned by the newest.
+  fixed_link_stamps_.insert(std::upper_bound(fixed_link_stamps_.begin(), fixed_link_stamps_.end(), stamp),
+                            stamp);
+  while (fixed_link_stamps_.front() + cache_ < fixed_link_stamps_.back())
+    fixed_link_stamps_.pop_front();
+}
+
+void OneLinkChain::clearSamples() {
+  samples_.clear();
+  fixed_link_stamps_.clear();
+  newest_ = 0;
+  complete_ = true;
+  before_ = 0;
+}
+
+void OneLinkChain::add(const std::string& child, const std::string& parent, core::TimeNs stamp,
+                       const geometry_msgs::Transform& transform) {
+  if (!valid_ || child != child_)
+    return;
+  if (parent != parent_ || stamp <= newest_) {
+    // Out of order, repeated, or from another parent: tf2's samples around it are not all kept here.
+    // Kept again from the next one in order.
+    newest_ = std::max(newest_, stamp);
+    samples_.clear();
+    complete_ = false;
+    before_ = newest_;
+    return;
+  }
+  newest_ = stamp;
+  // As tf2's TransformStorage holds it.
+  samples_.push_back(
+      {stamp,
+       {tf2::Quaternion(transform.rotation.x, transform.rotation.y, transform.rotation.z,
+                        transform.rotation.w),
+        tf2::Vector3(transform.translation.x, transform.translation.y, transform.translation.z)}});
+  // tf2's TimeCache::pruneList: samples older than the cache time before the newest.
+  while (samples_.front().stamp + cache_ < stamp)
+    samples_.pop_front();
+  if (!complete_ && before_ + cache_ < stamp)
+    complete_ = true;  // tf2 pruned the samples before the first kept too
+}
+
+bool OneLinkChain::answer(core::TimeNs time, geometry_msgs::Transform& out) const {
+  if (!valid_ || samples_.empty() || time < samples_.front().stamp || time > samples_.back().stamp)
+    return false;
+  // tf2's TimeCache::findClosest and getData: its newest and earliest samples as they are, else the
+  // pair around `time` (the older one at or before it) interpolated, even at a sample's own stamp.
+  Link link;
+  if (time == samples_.back().stamp) {
+    link = samples_.back().link;
+  } else if (time == samples_.front().stamp && complete_) {
+    link = samples_.front().link;
+  } else {
+    // The first sample after `time`: usually among the newest (the fit asks for new samples).
+    auto newer = std::prev(samples_.end());
+    for (int step = 0; step < 8 && std::prev(newer)->stamp > time; ++step)
+      --newer;
+    if (std::prev(newer)->stamp > time) {
+      newer = std::upper_bound(samples_.begin(), newer, time,
+                               [](core::TimeNs t, const Sample& sample) { return t < sample.stamp; });
+    }
+    const Sample& one = *std::prev(newer);
+    const Sample& two = *newer;
+    // TimeCache::interpolate: the ratio of ros::Durations' seconds.
+    const tf2Scalar ratio = durationSeconds(time - one.stamp) / durationSeconds(two.stamp - one.stamp);
+    link.translation.setInterpolate3(one.link.translation, two.link.translation, ratio);
+    link.rotation = tf2::slerp(one.link.rotation, two.link.rotation, ratio);
+  }
+  // The walk from the base up: below the link, the link, above it.
+  Link accumulated = below_;
+  accumulate(link, accumulated);
+  for (const Link& static_link : above_)
+    accumulate(static_link, accumulated);
+  // tf2's walk reads the fixed frame's link (TimeCache::getData): a static one always answers, a
+  // dynamic one at its single stamp or between its earliest and newest.
+  const bool fixed_link_answers = fixed_link_ == FixedLink::kStatic ||
+                                  (fixed_link_ == FixedLink::kDynamic && !fixed_link_stamps_.empty() &&
+                                   (fixed_link_stamps_.size() == 1 ? time == fixed_link_stamps_.front()
+                                                                   : time >= fixed_link_stamps_.front() &&
+                                                                         time <= fixed_link_stamps_.back()));
+  if (!fixed_link_answers) {
+    // tf2's walk ended at the fixed frame, as at a root: its "full path" ending, the target's walk empty.
+    const Link target = identityLink();
+    const tf2::Quaternion inverse_target_rotation = target.rotation.inverse();
+    const tf2::Vector3 inverse_target_translation =
+        tf2::quatRotate(inverse_target_rotation, -target.translation);
+    accumulated.translation =
+        tf2::quatRotate(inverse_target_rotation, accumulated.translation) + inverse_target_translation;
+    accumulated.rotation = inverse_target_rotation * accumulated.rotation;
+  }
+  out.translation.x = accumulated.translation.x();
+  out.translation.y = accumulated.translation.y();
+  out.translation.z = accumulated.translation.z();
+  out.rotation.x = accumulated.rotation.x();
+  out.rotation.y = accumulated.rotation.y();
+  out.rotation.z = accumulated.rotation.z();
+  out.rotation.w = accumulated.rotation.w();
+  return true;
+}
 
 mrpt::poses::CPose3D TfMotionSource::basePose(core::TimeNs time) const {
   if (time < 0 || time >= (static_cast<core::TimeNs>(1) << 32) * 1'000'000'000) {
     throw core::MotionUnavailable(time, "time outside the range of ROS time");
   }
+  if (geometry_msgs::Transform answered; chain_.answer(time, answered))
+    return toPose(answered);
+  ++tf_lookups_;
   try {
     return toPose(buffer_->lookupTransform(fixed_frame_, base_frame_, toRosTime(time)).transform);
   } catch (const std::exception& error) {  // tf2's, or ros::Duration's "out of dual 32-bit range"

@@ -1,10 +1,17 @@
 // TfFeed, the one tf policy of node and bag tool, with a real tf2 buffer: what it keeps, what it leaves
 // out, and what it answers, against the transforms fed (closed form).
 #include <gtest/gtest.h>
+#include <rosbag/view.h>
+#include <tf2/exceptions.h>
+#include <tf2_msgs/TFMessage.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <optional>
 
+#include "lidar_deskew/core/deskew.h"
+#include "lidar_deskew/ros/bag_file.h"
 #include "lidar_deskew/ros/conversions.h"
 #include "lidar_deskew/ros/tf_feed.h"
 #include "support/holds.h"
@@ -466,6 +473,282 @@ TEST(TfFeed, WhyNotCoveredNamesTheCause) {
   apart.feed.add(stamped("y", "base_link", kDrive.stampOf(0.0), {}), false);
   EXPECT_TRUE(holds(apart.feed.whyNotCovered(at(0.0), at(0.1), at(0.2)),
                     "tf odom -> base_link: the frames are not connected"));
+}
+
+// ---------------------------------------------------------------------------------------------------
+// Poses without lookups: where fixed -> base crosses one dynamic link (statics around it), the motion
+// source answers from the link's samples as they arrived, as tf2's own lookup answers, to the bit;
+// elsewhere it asks tf2.
+
+/// fixed -> base at `time` from the feed's motion source and from tf2's own lookup: the same bits, or
+/// neither answers.
+void expectAsTf2(const TfFeed& feed, core::TimeNs time, const std::string& what) {
+  std::optional<mrpt::poses::CPose3D> ours, theirs;
+  try {
+    ours = feed.motion().basePose(time);
+  } catch (const core::MotionUnavailable&) {
+  }
+  try {
+    theirs = ros_adapter::toPose(
+        feed.buffer()
+            .lookupTransform(feed.fixedFrame(), feed.baseFrame(), ros_adapter::toRosTime(time))
+            .transform);
+  } catch (const tf2::TransformException&) {
+  }
+  ASSERT_EQ(ours.has_value(), theirs.has_value()) << what << " at " << time;
+  if (!ours)
+    return;
+  const auto a = ours->getHomogeneousMatrixVal<mrpt::math::CMatrixDouble44>();
+  const auto b = theirs->getHomogeneousMatrixVal<mrpt::math::CMatrixDouble44>();
+  for (int row = 0; row < 3; ++row) {
+    for (int column = 0; column < 4; ++column) {
+      const double x = a(row, column), y = b(row, column);
+      ASSERT_EQ(std::memcmp(&x, &y, sizeof x), 0)
+          << what << " at " << time << " (" << row << ", " << column << "): " << x << " vs tf2's " << y;
+    }
+  }
+}
+
+/// parent -> child at t [s]: the drive's arc with a wobbling pitch, roll and height (all of the
+/// quaternion's components move).
+geometry_msgs::TransformStamped wobbling(const std::string& parent, const std::string& child, double t,
+                                         double phase = 0.0) {
+  const sim::Pose2 pose = kDrive.trajectory.pose(t);
+  const mrpt::poses::CPose3D pose3 = mrpt::poses::CPose3D::FromXYZYawPitchRoll(
+      pose.x + phase, pose.y, 0.1 * std::sin(3.0 * t), pose.yaw + phase, 0.05 * std::sin(5.0 * t + phase),
+      0.08 * std::cos(4.0 * t));
+  geometry_msgs::TransformStamped transform;
+  transform.header.frame_id = parent;
+  transform.child_frame_id = child;
+  transform.header.stamp = kDrive.stampOf(t);
+  transform.transform = ros_adapter::toTransform(pose3);
+  return transform;
+}
+
+/// Times over [from, to] [s]: every 20 ms sample's stamp, 1 ns either side, and between samples (1 ns
+/// outside the span at either end).
+std::vector<core::TimeNs> queryTimes(double from, double to) {
+  std::vector<core::TimeNs> times;
+  for (core::TimeNs time = at(from); time <= at(to); time += 20'000'000) {
+    for (const core::TimeNs offset : {-1L, 0L, 1L, 3'000'000L, 10'000'000L, 17'777'777L}) {
+      if (time + offset <= at(to) + 1)
+        times.push_back(time + offset);
+    }
+  }
+  return times;
+}
+
+// One dynamic link with statics below and above it; the fixed frame a root, a static's child, or a
+// localiser's (map -> odom on /tf at 10 Hz from 1.5 s to 2.5 s: tf2's walk ends there within those
+// times only): every answer is tf2's, to the bit, at and between its samples and at the ends of what
+// its cache keeps (2 s here), and none asks tf2.
+TEST(TfFeed, OneDynamicLinkIsAnsweredAsTf2WithoutALookup) {
+  struct Tree {
+    const char* name;
+    std::string fixed, base, moving_parent, moving;
+    std::vector<geometry_msgs::TransformStamped> statics;
+    bool localiser = false;  ///< map -> odom on /tf
+  };
+  const ros::Time t0 = kDrive.stampOf(0.0);
+  const std::vector<Tree> trees = {
+      {"direct", "odom", "base_link", "odom", "base_link", {}},
+      {"static below (REP-105)",
+       "odom",
+       "base_link",
+       "odom",
+       "base_footprint",
+       {stamped("base_footprint", "base_link", t0, {0.05, 0.02, 0.1})}},
+      {"statics above and below, fixed a root",
+       "map",
+       "base_link",
+       "odom",
+       "base_footprint",
+       {stamped("map", "world", t0, {3.0, -1.0, 0.7}), stamped("world", "odom", t0, {0.5, 0.2, -0.3}),
+        stamped("base_footprint", "mid", t0, {0.1, 0.0, 0.2}),
+        stamped("mid", "base_link", t0, {0.0, 0.3, 0.0})}},
+      {"fixed under a static parent",
+       "odom",
+       "base_link",
+       "odom",
+       "base_link",
+       {stamped("earth", "odom", t0, {10.0, 20.0, 1.0})}},
+      {"fixed under a localiser", "odom", "base_link", "odom", "base_link", {}, true},
+  };
+  for (const Tree& tree : trees) {
+    Fed fed(2.0, tree.fixed, tree.base);
+    for (const auto& link : tree.statics)
+      fed.feed.add(link, true);
+    fed.feed.add(stamped(tree.base, "laser", t0, {0.25, 0.05, 0.1}), true);
+    for (int k = 0; k <= 150; ++k) {
+      fed.feed.add(wobbling(tree.moving_parent, tree.moving, 0.02 * k), false);
+      if (tree.localiser && k % 5 == 0 && k >= 75 && k <= 125)
+        fed.feed.add(wobbling("map", "odom", 0.02 * k, 0.7), false);
+    }
+    const std::size_t lookups = fed.feed.motion().tfLookups();
+    // tf2 keeps 1.0 s to 3.0 s: its earliest and newest answered as they are, the rest interpolated.
+    for (const core::TimeNs time : queryTimes(1.0, 3.0))
+      expectAsTf2(fed.feed, time, tree.name);
+    EXPECT_EQ(fed.feed.motion().tfLookups(), lookups + 2) << tree.name;  // 1 ns outside, either end
+    // Not a mock of tf2: the answers are the tree's poses.
+    const sim::Pose2 moving = kDrive.trajectory.pose(2.0);
+    if (tree.statics.empty() && !tree.localiser) {
+      const mrpt::poses::CPose3D base = fed.feed.motion().basePose(at(2.0));
+      EXPECT_NEAR(base.x(), moving.x, 1e-9);
+      EXPECT_NEAR(base.y(), moving.y, 1e-9);
+      EXPECT_NEAR(std::remainder(base.yaw() - moving.yaw, 2 * M_PI), 0.0, 1e-9);
+    }
+  }
+}
+
+// Two dynamic links on the chain (odom -> base_footprint -> base_link both on /tf): tf2 answers, as
+// before.
+TEST(TfFeed, TwoDynamicLinksAskTf2) {
+  Fed fed(10.0, "odom", "base_link");
+  for (int k = 0; k <= 100; ++k) {
+    fed.feed.add(wobbling("odom", "base_footprint", 0.02 * k), false);
+    fed.feed.add(wobbling("base_footprint", "base_link", 0.02 * k + 0.007, 0.3), false);
+  }
+  const std::vector<core::TimeNs> times = queryTimes(0.0, 2.0);
+  for (const core::TimeNs time : times)
+    expectAsTf2(fed.feed, time, "two dynamic links");
+  EXPECT_EQ(fed.feed.motion().tfLookups(), times.size());
+}
+
+// The chain changes mid-stream: base_link's parent on /tf changes from odom to base_footprint (under a
+// moving base_footprint: two dynamic links) at 1 s and back to odom at 2 s; the fixed frame then gains
+// a static parent. tf2's cache of base_link holds samples of both parents; every answer is tf2's, and
+// once the chain is one link again, the samples after its change are answered without tf2.
+TEST(TfFeed, ChainChangingMidStreamIsAnsweredAsTf2) {
+  Fed fed(10.0, "odom", "base_link");
+  fed.feed.add(stamped("base_link", "laser", kDrive.stampOf(0.0), {0.25, 0.05, 0.1}), true);
+  const auto check = [&](double from, double to, const std::string& what) {
+    for (const core::TimeNs time : queryTimes(from, to))
+      expectAsTf2(fed.feed, time, what);
+  };
+  for (int k = 0; k < 50; ++k)
+    fed.feed.add(wobbling("odom", "base_link", 0.02 * k), false);
+  std::size_t lookups = fed.feed.motion().tfLookups();
+  check(0.0, 0.98, "one link");
+  EXPECT_EQ(fed.feed.motion().tfLookups(), lookups + 2);  // 1 ns outside, either end
+  for (int k = 50; k < 100; ++k) {
+    fed.feed.add(wobbling("odom", "base_footprint", 0.02 * k + 0.005), false);
+    fed.feed.add(wobbling("base_footprint", "base_link", 0.02 * k, 0.3), false);
+  }
+  check(0.0, 1.98, "two links");
+  for (int k = 100; k <= 150; ++k)
+    fed.feed.add(wobbling("odom", "base_link", 0.02 * k), false);
+  check(0.0, 3.0, "one link again");
+  lookups = fed.feed.motion().tfLookups();
+  check(2.0, 3.0, "one link again");
+  EXPECT_EQ(fed.feed.motion().tfLookups(), lookups + 2);
+  // odom under a static parent: tf2's walk ends at odom's own link now.
+  fed.feed.add(stamped("earth", "odom", kDrive.stampOf(0.0), {10.0, 20.0, 1.0}), true);
+  lookups = fed.feed.motion().tfLookups();
+  check(2.0, 3.0, "odom under earth");
+  EXPECT_EQ(fed.feed.motion().tfLookups(), lookups + 2);
+}
+
+// Samples arriving out of order (one late, one repeated): tf2 takes the late one in between; answers
+// stay tf2's, from tf2 itself around it, from the samples again after the next one in order.
+TEST(TfFeed, OutOfOrderSamplesAreAnsweredAsTf2) {
+  Fed fed;
+  for (int k = 0; k <= 100; ++k) {
+    if (k == 50)
+      continue;
+    fed.feed.add(wobbling("odom", "base_link", 0.02 * k), false);
+    if (k == 52)
+      fed.feed.add(wobbling("odom", "base_link", 1.0), false);  // 50 comes late
+  }
+  fed.feed.add(wobbling("odom", "base_link", 1.5), false);  // repeated: tf2 refuses it
+  fed.feed.add(wobbling("odom", "base_link", 2.02), false);
+  const std::size_t lookups = fed.feed.motion().tfLookups();
+  const std::vector<core::TimeNs> times = queryTimes(0.0, 2.02);
+  for (const core::TimeNs time : times)
+    expectAsTf2(fed.feed, time, "out of order");
+  // From tf2: before 1.06 s (the first sample in order after the late one), and after the newest.
+  const auto asked = std::count_if(times.begin(), times.end(),
+                                   [](core::TimeNs time) { return time < at(1.06) || time > at(2.02); });
+  EXPECT_EQ(fed.feed.motion().tfLookups(), lookups + static_cast<std::size_t>(asked));
+
+  // With a 1 s cache: as tf2 forgets the samples up to the late one, the first sample kept becomes its
+  // earliest (answered as it is, not interpolated), at 2.06 s and not before.
+  Fed short_cache(1.0);
+  for (int k = 0; k <= 110; ++k) {
+    if (k != 50)
+      short_cache.feed.add(wobbling("odom", "base_link", 0.02 * k), false);
+    if (k == 52)
+      short_cache.feed.add(wobbling("odom", "base_link", 1.0), false);
+    if (k >= 100) {
+      for (const core::TimeNs time : queryTimes(0.02 * k - 1.0, 0.02 * k - 0.9))
+        expectAsTf2(short_cache.feed, time, "short cache at " + std::to_string(k));
+    }
+  }
+}
+
+// The twist fit over the feed's samples gives the points it gives over tf2's lookups, bit for bit, with
+// no lookup.
+TEST(TfFeed, TwistFitOverTheSamplesIsTheFitOverTf2) {
+  Fed fed;
+  ros_adapter::TfMotionSource through_tf2(fed.feed.buffer(), "odom", "base_link");
+  through_tf2.setSingleLink(true);
+  fed.feed.add(stamped("base_link", "laser", kDrive.stampOf(0.0), kDrive.mount), true);
+  for (int k = 0; k <= 100; ++k) {
+    fed.feed.add(kDrive.motionAt(0.02 * k), false);
+    through_tf2.addSampleTime(ros_adapter::toNs(kDrive.stampOf(0.02 * k)));
+  }
+  core::ScanDeskewer ours, theirs;
+  std::size_t points = 0;
+  for (double start = 1.0; start < 1.9; start += 0.025) {
+    const core::PlanarScan scan = ros_adapter::fromMsg(*kDrive.scanAt(start));
+    const core::BeamTiming timing = core::resolveTiming(scan, {});
+    core::DeskewedScan a, b;
+    const mrpt::poses::CPose3D mount(kDrive.mount.x, kDrive.mount.y, 0.0, kDrive.mount.yaw, 0.0, 0.0);
+    ours.deskew(scan, timing, mount, fed.feed.motion(), a);
+    theirs.deskew(scan, timing, mount, through_tf2, b);
+    ASSERT_EQ(a.points.size(), b.points.size());
+    for (std::size_t i = 0; i < a.points.size(); ++i)
+      ASSERT_EQ(a.points[i].position, b.points[i].position) << start << " s, point " << i;
+    points += a.points.size();
+  }
+  EXPECT_GT(points, 10'000u);
+  EXPECT_EQ(fed.feed.motion().tfLookups(), 0u);
+  EXPECT_GT(through_tf2.tfLookups(), 50u);
+}
+
+// A real recording (the Neato's test drive: odom -> base_link on /tf, base_link's static parent left
+// out): at and between every odometry sample, the answers are tf2's, to the bit, and none asks tf2.
+TEST(TfFeed, RecordedOdometryIsAnsweredAsTf2WithoutALookup) {
+  Fed fed(100.0);
+  std::vector<core::TimeNs> stamps;
+  rosbag::Bag bag = ros_adapter::openBagForReading(std::string(LIDAR_DESKEW_SOURCE_DIR) +
+                                                   "/data/neato_xv11/test_drive.bag");
+  for (const rosbag::MessageInstance& message :
+       rosbag::View(bag, rosbag::TopicQuery(std::vector<std::string>{"/tf", "/tf_static"}))) {
+    const auto transforms = message.instantiate<tf2_msgs::TFMessage>();
+    ASSERT_TRUE(transforms);
+    for (const geometry_msgs::TransformStamped& transform : transforms->transforms) {
+      fed.feed.add(transform, message.getTopic() == "/tf_static");
+      if (transform.child_frame_id == "base_link" && message.getTopic() == "/tf")
+        stamps.push_back(ros_adapter::toNs(transform.header.stamp));
+    }
+  }
+  ASSERT_GT(stamps.size(), 80u);
+  std::sort(stamps.begin(), stamps.end());
+  const std::size_t lookups = fed.feed.motion().tfLookups();
+  std::size_t queries = 0;
+  for (std::size_t k = 0; k < stamps.size(); ++k) {
+    for (const core::TimeNs offset : {-1L, 0L, 1L, 7'654'321L}) {
+      expectAsTf2(fed.feed, stamps[k] + offset, "the Neato's odometry");
+      ++queries;
+    }
+    if (k + 1 < stamps.size()) {
+      expectAsTf2(fed.feed, (stamps[k] + stamps[k + 1]) / 2, "the Neato's odometry, between");
+      ++queries;
+    }
+  }
+  // tf2 is asked 1 ns before the first sample and after the last (7.7 ms included).
+  EXPECT_EQ(fed.feed.motion().tfLookups(), lookups + 3);
+  EXPECT_GT(queries, 400u);
 }
 
 }  // namespace

@@ -88,38 +88,40 @@ class ScanRebinner {
     kChord,    ///< close, but neither flat, a corner nor a step: the segment between them
     kCorner,   ///< two walls meeting between them (at corner_x_ / corner_y_ [j])
     kStep,     ///< a depth step: the farther point's contour continues behind the nearer one
+    kPending,  ///< neither flat nor joined as a surface yet: classifyRareLinks() decides
   };
 
-  // The steps of rebin(), in order (checking the grid is a file-local function in rebin.cpp). Each is one
-  // pass over the points or links; square roots, bearings and divisions only where a rule needs them.
-  /// Recomputes ray_cos_ / ray_sin_ (and the bins) when `grid` differs from the one they were made for.
+  // The steps of rebin(), in order. The common case (points on surfaces, one ray between neighbours) runs
+  // over plain arrays in loops of arithmetic and bytes; bearings (atan2) and square roots only for the
+  // rare links (corners, steps, grazing walls) and contour ends. Double, not float: float's rounding
+  // moved ranges by micrometres, enough to move bins across the 10 mm mark of the scan metrics.
+  /// Recomputes the rays when `grid` differs from the one they were made for.
   void updateRays(const AngleGrid& grid);
-  /// One pass over the points: fills point_ (x, y, the running bin positions, next: the neighbouring
-  /// point or kNoPoint, and each point's distance from the line through its neighbours as cross, length2;
-  /// ranges and bearings come when asked for) and joined_ (close enough for one contour); throws
-  /// InvalidInput("points") for a non-finite point.
+  /// Fills x_, y_, scale_, has_next_, position_ (the running bin positions), joined_, the
+  /// residuals and the noise candidates;
+  /// throws InvalidInput("points") for a non-finite point.
   void readPoints(const Points& points, const BinSweep& sweep);
-  /// Fills flat_: points that lie on the line through their two joined neighbours, within a tolerance
-  /// set from the scan's own noise (the median distance of such points from that line).
-  void findFlatPoints();
-  /// Fills link_ (and corners) from joined_, flat_ and the geometry of the neighbouring segments; the
-  /// links that are neither a surface nor a corner wait as kStep for traceContours().
-  void classifyLinks(const BinSweep& sweep);
-  /// One pass over the links: tells each waiting link a depth step, a chord or nothing, and offers every
-  /// bin the crossings of its ray with the contours (surfaces, corners, steps); then the contour ends.
+  /// The scan's flat tolerance (from the median residual) and link_: surfaces where one of a joined pair is
+  /// flat (on the line through its neighbours), kPending for the other neighbours, kNone for the rest.
+  void classifyLinks();
+  /// The pending links: a surface (a wall at a grazing angle), a corner, or kStep for traceContours().
+  void classifyRareLinks(const BinSweep& sweep);
+  /// One pass over the links: the crossings of every bin's ray with the contours (surfaces, corners,
+  /// steps), then the contour ends.
   void traceContours(const Points& points, const BinSweep& sweep);
   /// Writes the nearest crossing of every bin to `out`, `no_return` where none crossed, and leaves every
   /// bin empty for the next scan.
   void writeNearestCrossings(float no_return, RebinnedScan& out);
 
-  // Used by the steps; inline (defined and used only in rebin.cpp) to keep the per-bin loops in one piece.
-  /// [m] point j's range, [rad] its bearing (fastAtan2), computed on first use in a scan.
-  inline double rangeOf(std::size_t j);
-  inline double bearingOf(std::size_t j);
-  /// [m] point j's distance from the line through its neighbours (which it has, not on one point).
-  inline double residual(std::size_t j) const;
+  // The rare links' rules (rebin.cpp).
+  /// [m] point j's range, [rad] its bearing (fastAtan2).
+  inline double rangeOf(std::size_t j) const;
+  inline double bearingOf(std::size_t j) const;
+  /// The point after j (beam index + 1, or the full circle's wrap), or kNoPoint; the one before, or kNoPoint.
+  inline std::size_t next(std::size_t j) const;
+  inline std::size_t previous(std::size_t j) const;
   /// [m] the RebinConfig gap for points a and b (at the larger of their ranges; a == b for a lone point).
-  inline double joinGap(std::size_t a, std::size_t b, double abs_increment);
+  inline double joinGap(std::size_t a, std::size_t b, double abs_increment) const;
   /// Whether neighbours a and b, farther apart than the gap, can still make one surface (when one of them
   /// is flat) or a corner's wall: at most kMaxStepBins apart in bearing and a few gaps apart in distance
   /// (a wall at a grazing angle), and the scan's flat tolerance within kStepErrorBudget (with more noise,
@@ -131,19 +133,34 @@ class ScanRebinner {
   /// Whether a step's far contour (its end point `far`, the point `beyond` before it on that contour) can
   /// be continued behind `near` within kStepErrorBudget given the scan's noise (flat_tolerance_).
   inline bool continuationIsSure(std::size_t near, std::size_t far, std::size_t beyond);
-  /// The point before j on its contour side (j's predecessor whose next is j), or kNoPoint.
-  inline std::size_t previous(std::size_t j) const;
   /// Whether the corner of the line through (a0, a) and the line through (b, b1) lies between a and b.
   inline bool findCorner(std::size_t a0, std::size_t a, std::size_t b, std::size_t b1, double& corner_x,
                          double& corner_y) const;
-  /// The rays for running bin positions, by value (defined in rebin.cpp): locate() and walk() there.
-  struct Rays;
-  Rays rays() const;
   /// A kCorner link j -> q: the two segments through its corner.
   inline void crossCorner(const Points& points, std::size_t j, std::size_t q, const BinSweep& sweep);
-  /// The rays and the bins' nearest crossings, by value (defined in rebin.cpp): crossRays() there.
-  struct Bins;
-  Bins bins(const Points& points);
+  /// The rays for running bin positions (defined in rebin.cpp: locate() there).
+  struct Rays;
+  Rays rays(double abs_increment) const;
+  /// A segment's end: a point at running bin position `ray`, with side() of that ray and the next.
+  struct RayPoint {
+    double x, y;  // [m]
+    std::int32_t ray;
+    double low, high;  // [m]
+    float intensity;
+  };
+  /// The segment a -> b (less than a quarter turn wide): offers the rays between their positions, and the
+  /// ray at either end that the end lies on, intensity interpolated.
+  inline void crossRays(const RayPoint& a, const RayPoint& b);
+  /// Whether point j lies on its position's ray (bit 0) or the next (bit 1), within rounding; offers that
+  /// ray point j's own range (where no segment through j crosses it).
+  inline unsigned onRay(std::size_t j) const;
+  inline void offerOwnRay(std::size_t j, const Points& points);
+  /// The same for surface link a -> b, the common case, from onRay(); false (nothing done) when a point has
+  /// no running position or the segment is a quarter turn wide or more.
+  inline bool crossSurface(std::size_t a, std::size_t b, const Points& points);
+  /// Offers `count` rays from `ray` on their crossing with the segment a -> b, intensity interpolated.
+  inline void offerRays(std::int32_t ray, std::int32_t count, double ax, double ay, float a_intensity,
+                        double bx, double by, float b_intensity);
   /// The segment (ax, ay) -> (bx, by) at bearings [rad]: offers every bin whose ray crosses it (found by
   /// bearing: for grids without running positions, and segments a quarter turn wide or more).
   inline void crossSegmentByBearing(double ax, double ay, double a_bearing, float a_intensity, double bx,
@@ -169,28 +186,27 @@ class ScanRebinner {
   bool running_ = false;
   std::size_t ray_count_ = 0;
   double direction_ = 1.0;                   // the sign of angle_increment
-  std::vector<double> ray_cos_, ray_sin_;    // unit ray direction of every ray
-  std::vector<double> side_cos_, side_sin_;  // the same times direction_ (for side())
+  std::vector<double> ray_cos_, ray_sin_;    // unit ray direction of every ray (and kRayPadding copies)
+  std::vector<double> side_cos_, side_sin_;  // the same times direction_ (for Rays::side())
   std::vector<double> best_range_;           // [m] nearest crossing per bin so far (+inf between scans)
   std::vector<float> best_intensity_;        // its intensity (0 between scans)
   bool with_intensities_ = false;            // the scan carries intensities
   bool bins_in_use_ = false;                 // between the first offer and writeNearestCrossings()
-  /// What readPoints() finds of one corrected point, in one place (a per-point loop needs one pointer).
-  struct PointState {
-    double x, y;                 // [m] the corrected point
-    double side_low, side_high;  // [m] side() of the rays at and after its running position
-    double cross, length2;       // [m^2], [m^2] of its distance from its neighbours' line (length2 0: none)
-    std::size_t position;        // its running bin position (kUnknown: not found)
-    std::size_t next;            // the neighbouring point (beam index + 1), or kNoPoint
-  };
-  std::vector<PointState> point_;
-  std::vector<double> range_, bearing_;      // [m], [rad] their polar form where computed (0: not yet)
-  std::vector<char> joined_;                 // j and its next are close enough for one contour
-  std::vector<char> flat_;                   // j lies on the line through its two joined neighbours
+  bool wraps_ = false;                       // the last point neighbours the first (a full circle)
+  // Per point, in plain arrays.
+  std::vector<double> x_, y_, scale_;      // [m] the corrected point, max(|x|, |y|)
+  std::vector<double> cross_, length2_;    // [m^2] its distance from its neighbours' line as |cross| /
+                                           // sqrt(length2); cross infinite: no such line
+  std::vector<std::int32_t> position_;     // its running bin position (negative: not found)
+  std::vector<unsigned char> has_next_;    // j's next point is its neighbour (beam index + 1, or the wrap)
+  std::vector<unsigned char> joined_;      // j and its next are close enough for one contour
+  std::vector<unsigned char> flat_;        // j lies on the line through its two joined neighbours
+  std::vector<std::uint32_t> candidates_;  // [candidate_begin_, candidate_end_): points whose residual
+  std::size_t candidate_begin_ = 0, candidate_end_ = 0;  // estimates the noise (both links joined)
+  std::vector<std::uint32_t> pending_;  // the first pending_count_: links classifyRareLinks() decides
+  std::size_t pending_count_ = 0;
   std::vector<Link> link_;                   // what joins j and its next
   std::vector<double> corner_x_, corner_y_;  // [m] the corner of a kCorner link
-  std::vector<std::uint32_t> candidates_;    // points whose distance from that line estimates the noise
-  std::size_t candidate_count_ = 0;          // how many of candidates_ are set (it keeps its size)
   std::vector<double> noise_sample_;         // [m] scratch for the noise estimate
   std::vector<std::size_t> ends_;            // points where a contour ends (or a lone return)
   double flat_tolerance_ = 0.0;              // [m] of the last scan

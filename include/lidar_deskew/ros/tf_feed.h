@@ -165,6 +165,11 @@ class TfFeed {
   /// Records child's parent; the chain is walked again only when the tree changed.
   void setParent(const std::string& child, const std::string& parent);
   std::set<std::string> chainChildren() const;
+  /// The chain's frames changed: chain_ and the one-link chain (planChain) again.
+  void chainChanged();
+  /// Hands the motion source the walk fixed -> base when it crosses one dynamic link (OneLinkChain),
+  /// else none.
+  void planChain();
   void notify(TfEvent event, const std::string& text) const;
   /// `what` ('fixed_frame', 'the scan frame') is unknown to tf: the text naming it, the closest known
   /// frame and tf's frames.

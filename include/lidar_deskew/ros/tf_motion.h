@@ -2,20 +2,83 @@
 // fixed frame.
 #pragma once
 
+#include <geometry_msgs/Transform.h>
+#include <tf2/LinearMath/Quaternion.h>
+#include <tf2/LinearMath/Vector3.h>
 #include <tf2/buffer_core.h>
 
+#include <cstddef>
 #include <deque>
 #include <string>
+#include <vector>
 
 #include "lidar_deskew/core/motion.h"
 
 namespace lidar_deskew::ros_adapter {
 
+/// fixed -> base where tf2's walk from the base up to the fixed frame crosses one dynamic link, with
+/// any static links below and above it (docs/DESIGN.md §3): that link's samples kept as tf2 took them,
+/// and answered as tf2's lookupTransform answers, to the bit (its choice of samples, its lerp + slerp,
+/// its composition along the walk), without a lookup. Where its samples cannot say what tf2 holds (a
+/// sample arriving out of order, from another parent, before the first kept one) it answers nothing
+/// and the caller asks tf2.
+class OneLinkChain {
+ public:
+  /// A link as tf2 holds it: the child's rotation and origin in the parent.
+  struct Link {
+    tf2::Quaternion rotation;
+    tf2::Vector3 translation;
+  };
+  /// The fixed frame's own link, where tf2's walk up from the base ends: at a static link or a dynamic
+  /// one that answers the time (the fixed frame's pose), else (a root) composed with the identity.
+  enum class FixedLink { kNone, kStatic, kDynamic };
+  /// `cache` [ns]: the tf2 buffer's cache time (its samples are pruned alike).
+  explicit OneLinkChain(core::TimeNs cache) : cache_(cache) {}
+
+  /// The walk is `below` (static links from the base up to `child`), parent -> child on /tf, then
+  /// `above` (static links from `parent` up to the fixed frame), then the fixed frame's link.
+  /// `newest` [ns]: the newest stamp tf2 holds of child (0: none). The samples are kept when the
+  /// dynamic link is the one before.
+  void setChain(const std::string& child, const std::string& parent, std::vector<Link> below,
+                std::vector<Link> above, FixedLink fixed_link, core::TimeNs newest);
+  /// fixed -> base is not such a walk: nothing is answered.
+  void clearChain();
+  /// A transform of `child` that tf2 took, in arrival order (others' are ignored).
+  void add(const std::string& child, const std::string& parent, core::TimeNs stamp,
+           const geometry_msgs::Transform& transform);
+  /// A stamp [ns] tf2 took of the fixed frame's own link on /tf, in arrival order.
+  void addFixedLinkStamp(core::TimeNs stamp);
+  /// tf2's dynamic caches were cleared.
+  void clearSamples();
+  /// fixed -> base at `time` [ns] as tf2 would answer it, when the samples kept say so; else false.
+  bool answer(core::TimeNs time, geometry_msgs::Transform& out) const;
+  /// The samples kept.
+  std::size_t size() const { return samples_.size(); }
+
+ private:
+  struct Sample {
+    core::TimeNs stamp;
+    Link link;
+  };
+  core::TimeNs cache_;
+  bool valid_ = false;
+  std::string child_, parent_;
+  Link below_;               // the base in child, accumulated as tf2 does from the base up
+  std::vector<Link> above_;  // from parent up
+  FixedLink fixed_link_ = FixedLink::kNone;
+  std::deque<core::TimeNs> fixed_link_stamps_;  // sorted: those tf2 holds of the fixed frame's link
+  std::deque<Sample> samples_;  // in stamp order: every sample tf2 holds of child from the first on
+  core::TimeNs newest_ = 0;     // [ns] the newest stamp tf2 took of child (0: none)
+  /// True when tf2 holds no sample of child before the first kept (tf2 answers its earliest as it is).
+  bool complete_ = true;
+  core::TimeNs before_ = 0;  // [ns] else: the newest such sample (pruned like tf2's: then complete)
+};
+
 /// Looks up fixed_frame -> base_frame in a tf2 buffer. tf2 interpolates linearly between its samples;
 /// the times of those samples, when fed through addSampleTime(), become knots of the correction so
 /// that knots reproduce per-beam lookups exactly. Never extrapolates: times tf does not cover throw
-/// core::MotionUnavailable with tf2's message. TfFeed keeps one up to date; tests and benchmarks may
-/// fill one by hand.
+/// core::MotionUnavailable with tf2's message. TfFeed keeps one up to date, with a OneLinkChain that
+/// answers without a lookup where it can; tests and benchmarks may fill one by hand.
 class TfMotionSource final : public core::MotionSource {
  public:
   /// `retention` [ns]: sample times older than the newest one by more than this are forgotten (make
@@ -25,7 +88,8 @@ class TfMotionSource final : public core::MotionSource {
       : buffer_(&buffer),
         fixed_frame_(std::move(fixed_frame)),
         base_frame_(std::move(base_frame)),
-        retention_(retention) {}
+        retention_(retention),
+        chain_(retention) {}
 
   mrpt::poses::CPose3D basePose(core::TimeNs time) const override;
   void appendSampleTimes(core::TimeNs begin, core::TimeNs end,
@@ -38,11 +102,19 @@ class TfMotionSource final : public core::MotionSource {
 
   /// Records a sample time of the chain (out-of-order and repeated times are fine).
   void addSampleTime(core::TimeNs time);
-  /// Forgets the sample times (tf cache cleared).
-  void clearSampleTimes() { sample_times_.clear(); }
+  /// Forgets the samples (tf's dynamic cache cleared): their times and the one-link chain's.
+  void clearSamples() {
+    sample_times_.clear();
+    chain_.clearSamples();
+  }
   void setSingleLink(bool single_link) { single_link_ = single_link; }
   /// Answers from `buffer` from now on (the owner replaced its buffer).
   void setBuffer(const tf2::BufferCore& buffer) { buffer_ = &buffer; }
+
+  /// The one-link chain that answers basePose without tf2 where it can (TfFeed keeps it).
+  OneLinkChain& chain() { return chain_; }
+  /// How many times basePose asked tf2 (the one-link chain answered the others).
+  std::size_t tfLookups() const { return tf_lookups_; }
 
   const std::string& fixedFrame() const { return fixed_frame_; }
   const std::string& baseFrame() const { return base_frame_; }
@@ -54,6 +126,8 @@ class TfMotionSource final : public core::MotionSource {
   core::TimeNs retention_;
   std::deque<core::TimeNs> sample_times_;  // sorted, unique, within retention_ of the newest
   bool single_link_ = false;
+  OneLinkChain chain_;
+  mutable std::size_t tf_lookups_ = 0;
 };
 
 }  // namespace lidar_deskew::ros_adapter
