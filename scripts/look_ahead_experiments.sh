@@ -13,7 +13,7 @@ work="$repo/.build/look_ahead"
 mkdir -p "$work"
 scenarios=("$@")
 [ ${#scenarios[@]} -gt 0 ] || scenarios=(LDS-01/normal/arc LDS-01/high/arc UTM-30LX/normal/arc ILD26TRI/varying/varying ILD26TRI/normal/arc LDS-01/high/smooth)
-look_aheads=(0 0.2 0.5 1)
+look_aheads=(0 0.1 0.2 0.5 1)
 printf 'interpolation: linear\n' > "$work/linear.yaml"
 for l in "${look_aheads[@]}"; do printf 'interpolation: twist\nfit_look_ahead: %s\n' "$l" > "$work/twist-$l.yaml"; done
 # rms ROW COLUMN: the RMS of a deskew_metrics --markdown row's column (6 cloud, 8 laser_geometry).
