@@ -42,7 +42,8 @@ Evaluation simulateAndEvaluate(const std::string& scenario, bool noise, double t
 // Not yet never: with stamps off by up to 5 ms, ILD26TRI/varying (a turn rate stepping between +-4
 // rad/s every 40 ms) passes for noise and is smoothed (140 mm against 107); with everything at once,
 // LDS-01/high/rotation 21.5 against 20.8.
-void expectNeverWorseThanTfsLine(const char* name, double noise, const sim::OdometryTiming& timing) {
+void expectNeverWorseThanTfsLine(const char* name, double noise, const sim::OdometryTiming& timing,
+                                 bool range_noise = true) {
   std::vector<sim::Scenario> scenarios = sim::paperScenarios();
   for (const sim::Scenario& smooth : sim::smoothScenarios()) {
     if (smooth.name == "LDS-01/high/smooth")
@@ -54,7 +55,7 @@ void expectNeverWorseThanTfsLine(const char* name, double noise, const sim::Odom
     const std::string bag = ::testing::TempDir() + "/paper_case_odometry_" + std::to_string(::getpid()) + ".bag";
     const std::string truth = bag + ".truth";
     sim::SimBagOptions options;
-    options.noise = true;
+    options.noise = range_noise;
     options.seed = static_cast<unsigned>(k % 3 + 1);
     options.odom_noise = noise;
     options.odom_noise_seed = options.seed;
@@ -101,6 +102,13 @@ TEST(PaperCases, IrregularOdometryNeverWorseThanTfsLine) {  // 5-11 Hz
 }
 TEST(PaperCases, EncoderTicksNeverWorseThanTfsLine) {  // 1 mm ticks
   expectNeverWorseThanTfsLine("1 mm ticks", 0.0, odometryTiming(0.0, 0.0, 0.0, 0.001));
+}
+// Range noise off, the wheel base of RESULTS.md's table (0.235 m): fails on this branch (ILD26TRI/varying
+// 515.74 mm against tf's line's 14.08 at seed 1: the quantised turn rate's steps pass for noise).
+TEST(PaperCases, EncoderTicksWithoutRangeNoiseNeverWorseThanTfsLine) {
+  sim::OdometryTiming ticks = odometryTiming(0.0, 0.0, 0.0, 0.001);
+  ticks.wheel_base = 0.235;
+  expectNeverWorseThanTfsLine("1 mm ticks, exact ranges", 0.0, ticks, false);
 }
 TEST(PaperCases, EverythingAtOnceNeverWorseThanTfsLine) {  // 5-7 Hz, noise, jitter and ticks
   expectNeverWorseThanTfsLine("5-7 Hz, all", 0.1, odometryTiming(0.005, 5.0, 7.0, 0.001));
