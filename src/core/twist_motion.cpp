@@ -14,9 +14,13 @@ namespace {
 
 /// Fewer intervals with a full set of neighbours than this: no noise estimate (samples followed).
 constexpr std::size_t kMinNoiseIntervals = 8;
-/// Median over intervals of the best simple model's standardised residual, for Gaussian noise of
-/// standard deviation 1 (the eleven residuals of estimateNoise below; 3e6 normal draws give 0.0857).
-constexpr double kResidualMedian = 0.0857;
+/// Medians over intervals of each kind of simple model's smallest standardised residual (estimateNoise
+/// below: a step beside the interval, two of them; a chord, three; a quartic, six), for Gaussian noise
+/// of standard deviation 1 (3e6 normal draws).
+constexpr double kResidualMedians[3] = {0.3878, 0.2759, 0.1487};
+/// The least of the three kinds' estimates, under that noise: 0.84 of it at 100 scored intervals (a 2 s
+/// window at 50 Hz; 0.74 at 26, 0.88 at 200; 3000 draws each).
+constexpr double kLeastOfKinds = 0.84;
 /// Twist differences below these over an interval move a point by less than 0.01 mm (1e-6 rad at
 /// 10 m): counted as exact.
 constexpr double kFloorDisplacement = 1e-5;  // [m]
@@ -31,6 +35,10 @@ constexpr double kMinKnotSpacing = 5e-4;
 /// the 5 rad/s smooth drive at 40 Hz), and a parabola's slope through noise that small costs far less
 /// than it gains. Odometry with 10 % noise per step is followed.
 constexpr double kNoiseShare = 0.01;
+/// Nor noise below this many floors (0.1 mm over a typical interval): smoothing it gains nothing a
+/// point would show, and its component's ratio, estimated from residuals that small, would decide
+/// whether the whole twist is followed (the lateral speed of an arc: UTM-30LX/normal/arc at 10 %).
+constexpr double kNoisyFloor = 10.0;
 /// fitInterval(): a parabola's slope is trusted where the fourth (or third) difference of five (four)
 /// consecutive intervals' means is within this share of the sum of their changes.
 constexpr double kSmoothness = 0.4;
@@ -345,31 +353,43 @@ void TwistMotion::estimateNoise() {
       }
       curve_[i] = (means_[i + 5] - prediction).cwiseAbs() / std::sqrt(variance);
     }
-    // Each interval's smallest residual, all six components at once (cwiseMin is std::min, element by
-    // element).
+    // Each interval's smallest residual of each kind, all six components at once (cwiseMin is
+    // std::min, element by element).
     for (std::size_t j = fresh; j + 6 <= count; ++j) {
-      Twist e =
-          step_[j - 1].cwiseMin(step_[j]).cwiseMin(chord_[j - 1]).cwiseMin(chord_[j]).cwiseMin(chord_[j + 1]);
-      for (std::size_t i = j - 5; i <= j; ++i)
-        e = e.cwiseMin(curve_[i]);
       Sample& kept = sample(j);
-      kept.residual = e;
+      kept.residual[0] = step_[j - 1].cwiseMin(step_[j]);
+      kept.residual[1] = chord_[j - 1].cwiseMin(chord_[j]).cwiseMin(chord_[j + 1]);
+      Twist e = curve_[j - 5];
+      for (std::size_t i = j - 4; i <= j; ++i)
+        e = e.cwiseMin(curve_[i]);
+      kept.residual[2] = e;
       kept.residual_from = sample(j - 5).time;
       kept.residual_to = sample(j + 6).time;
     }
   }
-  // The noise is the median of each component's smallest residuals (a column of minima_ each).
+  // Each kind's estimate is the median of its smallest residuals (a column of minima_ per component and
+  // kind), and the noise the least of the three. A kind that holds the true twist on most intervals
+  // gives the noise; one that does not gives more (a turn rate stepping every other sample holds only
+  // the steps, with quantised or jittered samples). Taking the least errs towards less noise, which
+  // smooths less: towards tf's line, never away from it. (The smallest of all eleven residuals, one
+  // median, took a stepping turn rate for noise 8 times its own: only one of the eleven held it.)
   const std::size_t scored = count - 10;
-  minima_.resize(6 * scored);
+  minima_.resize(18 * scored);
   for (std::size_t j = 5; j + 6 <= count; ++j) {
-    const Twist& e = sample(j).residual;
-    for (std::size_t c = 0; c < 6; ++c)
-      minima_[c * scored + j - 5] = e[static_cast<int>(c)];
+    for (std::size_t kind = 0; kind < 3; ++kind) {
+      const Twist& e = sample(j).residual[kind];
+      for (std::size_t c = 0; c < 6; ++c)
+        minima_[(kind * 6 + c) * scored + j - 5] = e[static_cast<int>(c)];
+    }
   }
   const std::size_t middle = scored / 2;
-  for (std::size_t c = 0; c < 6; ++c)
-    noise_[static_cast<int>(c)] =
-        kthSmallest(&minima_[c * scored], scored, middle, scratch_) / kResidualMedian;
+  for (std::size_t c = 0; c < 6; ++c) {
+    double least = INFINITY;
+    for (std::size_t kind = 0; kind < 3; ++kind)
+      least = std::min(least, kthSmallest(&minima_[(kind * 6 + c) * scored], scored, middle, scratch_) /
+                                  kResidualMedians[kind]);
+    noise_[static_cast<int>(c)] = least / kLeastOfKinds;
+  }
   // Noisy: above the floor and above kNoiseShare of the component's typical size (the median of its
   // means' magnitudes). Below, what the simple models leave is taken for the motion's own curvature.
   magnitudes_.resize(count);
@@ -379,7 +399,7 @@ void TwistMotion::estimateNoise() {
     for (std::size_t k = 0; k < count; ++k)
       magnitudes_[k] = std::abs(means_[k][static_cast<int>(c)]);
     const double typical_size = kthSmallest(magnitudes_.data(), count, count / 2, scratch_);
-    noisy_[c] = noise_[static_cast<int>(c)] > std::max(floor_[static_cast<int>(c)], kNoiseShare * typical_size);
+    noisy_[c] = noise_[static_cast<int>(c)] > std::max(kNoisyFloor * floor_[static_cast<int>(c)], kNoiseShare * typical_size);
   }
 }
 

@@ -2,6 +2,7 @@
 // TwistMotion between them.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <random>
@@ -428,6 +429,97 @@ TEST(TwistMotion, NoisyOdometryWithALookAheadAveragesBothSides) {
     linear_sum += linear;
   }
   EXPECT_LT(ahead_sum, behind_sum);
+}
+
+/// Odometry at 50 Hz for 4 s of a twist constant over each 20 ms step (`twist_at(step)`): its heading
+/// from the travel of two wheels `base` [m] apart, each counted in whole ticks of `tick` [m] (0: exact),
+/// and each step's turn and advance off by normal noise of `sigma` [rad/s, m/s] in their means; the
+/// truth beside it, both as PoseSamples.
+template <class TwistAt>
+void steppedOdometry(TwistAt twist_at, double tick, double base, double sigma, unsigned seed,
+                     PoseSamples& odometry, PoseSamples& truth) {
+  std::mt19937 random(seed);
+  std::normal_distribution<double> noise(0.0, sigma);
+  CPose3D true_pose, noisy_pose;
+  double travel = 0.0, heading = 0.0;  // the base's path length [m] and turn [rad] so far
+  for (int k = 0; k <= 200; ++k) {
+    CPose3D reported = noisy_pose;
+    if (tick > 0.0) {
+      const double right = std::round((travel + 0.5 * base * heading) / tick);
+      const double left = std::round((travel - 0.5 * base * heading) / tick);
+      reported.setYawPitchRoll((right - left) * tick / base, 0.0, 0.0);
+    }
+    odometry.add(kT0 + k * kSecond / 50, reported);
+    truth.add(kT0 + k * kSecond / 50, true_pose);
+    const Twist twist = twist_at(k);
+    true_pose = twist::constantTwist(true_pose, twist, 0.02);
+    Twist noisy = twist;
+    if (sigma > 0.0) {
+      noisy[0] += noise(random);
+      noisy[5] += noise(random);
+    }
+    noisy_pose = twist::constantTwist(noisy_pose, noisy, 0.02);
+    travel += 0.02 * noisy[0];
+    heading += 0.02 * noisy[5];
+  }
+}
+
+/// RMS error [m] of a point 5 m ahead of the base over sweeps of 0.1 s in the middle 2 s, relative to
+/// each sweep's start, with the twist fit (1 s look-ahead) and tf's line (`linear`); the median over the
+/// sweeps of the fit's estimated turn-rate noise (`noise`).
+double steppedErrors(const PoseSamples& odometry, const PoseSamples& truth, double* linear, double* noise) {
+  TwistMotion motion;
+  double sum = 0.0, sum_linear = 0.0;
+  int n = 0;
+  std::vector<double> noises;
+  const mrpt::math::TPoint3D point(5.0, 0.0, 0.0);
+  for (int sweep = 0; sweep < 20; ++sweep) {
+    const TimeNs begin = kT0 + kSecond + sweep * kSecond / 10 + kSecond / 200, end = begin + kSecond / 10;
+    motion.prepare(odometry, begin, end, kSecond);
+    noises.push_back(motion.estimatedNoise()[5]);
+    const CPose3D start = motion.basePose(begin), linear_start = odometry.basePose(begin);
+    const CPose3D true_start = truth.basePose(begin);
+    for (TimeNs t = begin; t <= end; t += kSecond / 1000) {
+      const mrpt::math::TPoint3D true_point = (truth.basePose(t) - true_start).composePoint(point);
+      sum += ((motion.basePose(t) - start).composePoint(point) - true_point).sqrNorm();
+      sum_linear += ((odometry.basePose(t) - linear_start).composePoint(point) - true_point).sqrNorm();
+      ++n;
+    }
+  }
+  std::nth_element(noises.begin(), noises.begin() + 10, noises.end());
+  *noise = noises[10];
+  *linear = std::sqrt(sum_linear / n);
+  return std::sqrt(sum / n);
+}
+
+// The noise estimate must not take motion for noise, nor noise for less than it is. A turn rate
+// stepping +-4 rad/s every other sample (ILD26TRI/varying), its heading from wheels counted in 1 mm
+// ticks on a 0.235 m wheel base: the ticks leave the means 0.21 rad/s apart in each pair (one
+// wheel's tick over 20 ms), and the estimate must stay well below the alternation (taking the
+// alternation for noise, 3.5 rad/s, made the fit 33 times worse than tf's line). Normal noise of 0.2
+// rad/s per step on an arc: found within 0.6-1.4 of it.
+TEST(TwistMotion, NoiseEstimateTellsASteppingTurnRateFromNoise) {
+  PoseSamples odometry, truth;
+  steppedOdometry([](int k) { return (Twist() << 1.0, 0.0, 0.0, 0.0, 0.0, (k / 2) % 2 ? -4.0 : 4.0).finished(); },
+                  0.001, 0.235, 0.0, 1, odometry, truth);
+  double linear, noise;
+  const double stepped = steppedErrors(odometry, truth, &linear, &noise);
+  std::printf("stepping turn rate, quantised heading: fit %.2f mm, tf's line %.2f mm, noise %.3f rad/s\n",
+              1e3 * stepped, 1e3 * linear, noise);
+  EXPECT_LT(noise, 1.0);
+  EXPECT_LT(stepped, 1.05 * linear);
+  for (const unsigned seed : {1u, 2u, 3u}) {
+    PoseSamples noisy, arc;
+    steppedOdometry([](int) { return (Twist() << 1.5, 0.0, 0.0, 0.0, 0.0, 2.0).finished(); }, 0.0, 0.0, 0.2,
+                    seed, noisy, arc);
+    double noisy_linear, estimated;
+    const double fitted = steppedErrors(noisy, arc, &noisy_linear, &estimated);
+    std::printf("arc, noise 0.2 (seed %u): fit %.2f mm, tf's line %.2f mm, noise %.3f\n", seed,
+                1e3 * fitted, 1e3 * noisy_linear, estimated);
+    EXPECT_GT(estimated, 0.6 * 0.2) << seed;
+    EXPECT_LT(estimated, 1.4 * 0.2) << seed;
+    EXPECT_LT(fitted, noisy_linear) << seed;
+  }
 }
 
 // A sweep is corrected as soon as tf covers it, live and offline, and tf after that arrives in whatever

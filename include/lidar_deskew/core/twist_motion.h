@@ -93,9 +93,10 @@ class TwistMotion final : public MotionSource {
     Eigen::Vector3d translation;
     Twist mean;  // of the interval to the sample at mean_until (-1: not computed yet)
     TimeNs mean_until;
-    /// estimateNoise()'s smallest residual of the interval starting here, per component; a function of
-    /// the samples from residual_from to residual_to (five intervals either side), kept with them.
-    Twist residual = Twist::Zero();
+    /// estimateNoise()'s smallest residual of each kind (step, chord, quartic) of the interval starting
+    /// here, per component; a function of the samples from residual_from to residual_to (five intervals
+    /// either side), kept with them.
+    std::array<Twist, 3> residual{Twist::Zero(), Twist::Zero(), Twist::Zero()};
     TimeNs residual_from = -1, residual_to = -1;
   };
   /// One fitted interval: starts at `time`, lasts `duration` [s]; the twist at t' [s] into it is
@@ -158,7 +159,7 @@ class TwistMotion final : public MotionSource {
   double fastest_change_ = 0.0;  // [m/s^2] largest |slope| of a piece, its angular part times 10 m
   bool screws_ = false;
   std::vector<double> scratch_;  // estimateNoise()'s buffer for medians
-  std::vector<double> minima_;   // estimateNoise()'s smallest residual per interval, a column per component
+  std::vector<double> minima_;   // estimateNoise()'s smallest residuals per interval, a column per kind and component
   std::vector<Twist> step_, chord_, curve_;  // estimateNoise()'s residuals per stencil
   std::vector<TimeNs> doubled_centres_;       // estimateNoise()'s interval mid times [ns] times two
 };
