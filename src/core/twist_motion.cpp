@@ -21,6 +21,8 @@ constexpr double kResidualMedians[3] = {0.3878, 0.2759, 0.1487};
 /// The least of the three kinds' estimates, under that noise: 0.84 of it at 100 scored intervals (a 2 s
 /// window at 50 Hz; 0.74 at 26, 0.88 at 200; 3000 draws each).
 constexpr double kLeastOfKinds = 0.84;
+/// ... and at worst (the shortest windows smoothed): 0.74.
+constexpr double kLeastOfKindsAtWorst = 0.74;
 /// Twist differences below these over an interval move a point by less than 0.01 mm (1e-6 rad at
 /// 10 m): counted as exact.
 constexpr double kFloorDisplacement = 1e-5;  // [m]
@@ -64,6 +66,11 @@ constexpr std::size_t kMinSmoothIntervals = 30;
 /// diffuse prior), and their innovations are left out of the likelihood.
 constexpr double kDiffuse = 1e8;
 constexpr std::size_t kDiffuseIntervals = 2;
+/// smoothNoisy(): the chosen spline's standardised innovations must be white at lags 2-4: the
+/// Ljung-Box statistic below the chi-square quantile (3 degrees of freedom) of 1 - 1e-6, as each sweep
+/// tests its window (thousands per recording). Lag 1 is left out: jittered stamps make it -0.5.
+constexpr int kFirstLag = 2, kLastLag = 4;
+constexpr double kWhitenessLimit = 30.66;
 /// Standard normal quantile of the line test (one-sided 99.9 %).
 constexpr double kTestQuantile = 3.09;
 
@@ -122,6 +129,34 @@ double kthSmallest(const double* values, std::size_t n, std::size_t k, std::vect
       return pivot;
     }
   }
+}
+
+/// The Ljung-Box statistic of `values` over lags kFirstLag..kLastLag: n (n + 2) sum r_k^2 / (n - k),
+/// r_k the autocorrelation at lag k (chi-square with kLastLag - kFirstLag + 1 degrees of freedom for
+/// white values).
+double ljungBox(const std::vector<double>& values) {
+  const std::size_t n = values.size();
+  if (n <= static_cast<std::size_t>(kLastLag) + 1)
+    return 0.0;
+  double mean = 0.0;
+  for (const double value : values)
+    mean += value;
+  mean /= static_cast<double>(n);
+  double variance = 0.0;
+  for (const double value : values)
+    variance += (value - mean) * (value - mean);
+  if (!(variance > 0.0))
+    return 0.0;
+  double sum = 0.0;
+  for (int lag = kFirstLag; lag <= kLastLag; ++lag) {
+    const std::size_t l = static_cast<std::size_t>(lag);
+    double covariance = 0.0;
+    for (std::size_t k = l; k < n; ++k)
+      covariance += (values[k] - mean) * (values[k - l] - mean);
+    const double r = covariance / variance;
+    sum += r * r / static_cast<double>(n - l);
+  }
+  return static_cast<double>(n) * static_cast<double>(n + 2) * sum;
 }
 
 /// Least-squares line y = alpha + beta x over running sums; residual sum of squares.
@@ -556,6 +591,7 @@ double TwistMotion::smoothComponent(int c, double ratio, std::size_t first, std:
   Eigen::Matrix2d p = Eigen::Matrix2d::Zero();
   p(0, 0) = p(1, 1) = kDiffuse * diffuse_scale_[static_cast<std::size_t>(c)] * sigma2;
   double squares = 0.0, log_variances = 0.0;
+  standardised_.clear();
   for (std::size_t k = 0; k < count; ++k) {
     if (k > 0) {
       const double dt = centres_[k] - centres_[k - 1];
@@ -572,6 +608,7 @@ double TwistMotion::smoothComponent(int c, double ratio, std::size_t first, std:
     const double s = p(0, 0) + r;
     const double innovation = means_[k][c] - m[0];
     if (k >= kDiffuseIntervals) {
+      standardised_.push_back(innovation / std::sqrt(s));
       squares += innovation * innovation / s;
       log_variances += std::log(s);
     }
@@ -583,6 +620,7 @@ double TwistMotion::smoothComponent(int c, double ratio, std::size_t first, std:
   // The log likelihood, up to a constant (sigma^2 estimated from the samples, estimateNoise(): left free,
   // a twist stepping at samples would pass for noise).
   const double log_likelihood = -0.5 * (squares + log_variances);
+  innovation_square_ = squares / static_cast<double>(count - kDiffuseIntervals);
   if (keep) {
     // Back from the window's end to the sweep's first interval: x_k = m_k + G (x_k+1 - m_k+1|k), with
     // G = P_k F' P_k+1|k^-1.
@@ -640,6 +678,16 @@ void TwistMotion::smoothNoisy(std::size_t first, std::size_t last) {
         break;
       }
     }
+    // The spline chosen must explain the means as noise: its standardised innovations' mean square
+    // within the chi-square bound (99.9 %), the noise allowed to be as low as the least of kinds' bias
+    // makes it at worst, and the innovations white at lags 2-4. Else the component changes in a way no
+    // spline holds (a turn rate stepping every other sample, its stamps jittered: mean square 3.5
+    // against 2.9, Ljung-Box 150-200 against 30.7; noise alone: under 20), and the twist is followed.
+    smoothComponent(component, chosen, first, last, false);
+    const double dof = static_cast<double>(means_.size() - kDiffuseIntervals);
+    if (innovation_square_ > lineTestLimit(dof) / dof / (kLeastOfKindsAtWorst * kLeastOfKindsAtWorst) ||
+        ljungBox(standardised_) > kWhitenessLimit)
+      chosen = kMaxRatio;
     chosen_ratio_[component] = chosen;
     followed_ = chosen >= kFollowRatio;
   }

@@ -437,9 +437,10 @@ TEST(TwistMotion, NoisyOdometryWithALookAheadAveragesBothSides) {
 /// truth beside it, both as PoseSamples.
 template <class TwistAt>
 void steppedOdometry(TwistAt twist_at, double tick, double base, double sigma, unsigned seed,
-                     PoseSamples& odometry, PoseSamples& truth) {
+                     PoseSamples& odometry, PoseSamples& truth, double jitter = 0.0) {
   std::mt19937 random(seed);
   std::normal_distribution<double> noise(0.0, sigma);
+  std::uniform_real_distribution<double> stamp_error(-jitter, jitter);
   CPose3D true_pose, noisy_pose;
   double travel = 0.0, heading = 0.0;  // the base's path length [m] and turn [rad] so far
   for (int k = 0; k <= 200; ++k) {
@@ -449,7 +450,7 @@ void steppedOdometry(TwistAt twist_at, double tick, double base, double sigma, u
       const double left = std::round((travel - 0.5 * base * heading) / tick);
       reported.setYawPitchRoll((right - left) * tick / base, 0.0, 0.0);
     }
-    odometry.add(kT0 + k * kSecond / 50, reported);
+    odometry.add(kT0 + k * kSecond / 50 + (jitter > 0.0 ? secondsToNs(stamp_error(random)) : 0), reported);
     truth.add(kT0 + k * kSecond / 50, true_pose);
     const Twist twist = twist_at(k);
     true_pose = twist::constantTwist(true_pose, twist, 0.02);
@@ -496,8 +497,9 @@ double steppedErrors(const PoseSamples& odometry, const PoseSamples& truth, doub
 // stepping +-4 rad/s every other sample (ILD26TRI/varying), its heading from wheels counted in 1 mm
 // ticks on a 0.235 m wheel base: the ticks leave the means 0.21 rad/s apart in each pair (one
 // wheel's tick over 20 ms), and the estimate must stay well below the alternation (taking the
-// alternation for noise, 3.5 rad/s, made the fit 33 times worse than tf's line). Normal noise of 0.2
-// rad/s per step on an arc: found within 0.6-1.4 of it.
+// alternation for noise, 3.5 rad/s, made the fit 33 times worse than tf's line); with jittered
+// stamps, the spline is refused. Normal noise of 0.2 rad/s per step on an arc: found within 0.6-1.4
+// of it, and smoothed.
 TEST(TwistMotion, NoiseEstimateTellsASteppingTurnRateFromNoise) {
   PoseSamples odometry, truth;
   steppedOdometry([](int k) { return (Twist() << 1.0, 0.0, 0.0, 0.0, 0.0, (k / 2) % 2 ? -4.0 : 4.0).finished(); },
@@ -508,6 +510,18 @@ TEST(TwistMotion, NoiseEstimateTellsASteppingTurnRateFromNoise) {
               1e3 * stepped, 1e3 * linear, noise);
   EXPECT_LT(noise, 1.0);
   EXPECT_LT(stepped, 1.05 * linear);
+  // Stamps off by up to 5 ms (a driver stamping on receipt): noise of 2-2.7 rad/s against the steps'
+  // 8, which a smooth spline would take for noise (2-5 times tf's line's error, were it accepted).
+  for (const unsigned seed : {1u, 2u, 3u, 4u}) {
+    PoseSamples jittered, jitter_truth;
+    steppedOdometry([](int k) { return (Twist() << 1.0, 0.0, 0.0, 0.0, 0.0, (k / 2) % 2 ? -4.0 : 4.0).finished(); },
+                    0.0, 0.0, 0.0, seed, jittered, jitter_truth, 0.005);
+    double jitter_linear, jitter_noise;
+    const double jitter_fit = steppedErrors(jittered, jitter_truth, &jitter_linear, &jitter_noise);
+    std::printf("stepping turn rate, stamps +-5 ms (seed %u): fit %.2f mm, tf's line %.2f mm, noise %.3f\n", seed,
+                1e3 * jitter_fit, 1e3 * jitter_linear, jitter_noise);
+    EXPECT_LT(jitter_fit, 1.05 * jitter_linear) << seed;
+  }
   for (const unsigned seed : {1u, 2u, 3u}) {
     PoseSamples noisy, arc;
     steppedOdometry([](int) { return (Twist() << 1.5, 0.0, 0.0, 0.0, 0.0, 2.0).finished(); }, 0.0, 0.0, 0.2,

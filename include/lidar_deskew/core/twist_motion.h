@@ -135,6 +135,8 @@ class TwistMotion final : public MotionSource {
   std::array<double, 6> diffuse_scale_{};       // smoothComponent()'s prior size, per component
   Twist chosen_ratio_ = Twist::Zero();          // the ratios chosen in the last prepare()
   bool followed_ = false;                       // the noisy twist followed (each interval its mean)
+  double innovation_square_ = 0.0;     // smoothComponent()'s mean squared standardised innovation
+  std::vector<double> standardised_;  // and its standardised innovations
   std::vector<std::pair<Eigen::Vector2d, Eigen::Matrix2d>> filtered_, predicted_;  // scratch
   std::vector<std::pair<double, double>> likelihoods_;                            // scratch: (ratio, log L)
 
