@@ -300,8 +300,10 @@ void writeCloudBag(const CloudScenario& scenario, const CloudBagOptions& options
   const core::TimeNs epoch = options.epoch;
   const auto at = [&](double t) { return bagTime(epoch, t); };
 
-  const double tf_begin = sweep_starts.front() - 0.1;
-  const double tf_end = sweep_starts.back() + run.lidar.sweepPeriod() + 0.1;
+  if (!(options.tf_margin >= 0.0) || !std::isfinite(options.tf_margin))
+    throw std::invalid_argument("writeCloudBag: tf_margin must be finite and >= 0 s");
+  const double tf_begin = sweep_starts.front() - options.tf_margin;
+  const double tf_end = sweep_starts.back() + run.lidar.sweepPeriod() + options.tf_margin;
   const long tf_samples = std::lround(std::floor((tf_end - tf_begin) * options.tf_rate + 1e-9));
   // What the wheels measure of the planar motion, in the order a recorder writes it (throws for a bad
   // odometry option).

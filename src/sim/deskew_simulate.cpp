@@ -13,7 +13,8 @@
 //                   [--odom-noise R [--odom-seed N]] [--odom-yaw-scale F] [--odom-jitter S]
 //                   [--odom-rate LO:HI] [--odom-ticks M:B] [--odom-delivery late:S|burst:N]...
 //   deskew_simulate --cloud-scenario VLP16/rough/arc --convention velodyne_first --bag out.bag
-//                   --truth out.truth [--noise] [--seed N] [--tf-rate HZ] [--duration S] [--latency S]
+//                   --truth out.truth [--noise] [--seed N] [--tf-rate HZ] [--tf-margin S] [--duration S]
+//                   [--latency S]
 //                   [--odom-noise R [--odom-seed N]] [--odom-yaw-scale F] [--odom-jitter S]...
 //                   (the --odom-* options as for --scenario)
 #include <cmath>
@@ -43,7 +44,7 @@ int usage(const char* program) {
       "          [--odom-noise R [--odom-seed N]] [--odom-yaw-scale F] [--odom-jitter S]\n"
       "          [--odom-rate LO:HI] [--odom-ticks M:B] [--odom-delivery late:S|burst:N]...\n"
       "       %s --cloud-scenario NAME --convention NAME --bag OUT.bag --truth OUT.truth [--noise]\n"
-      "          [--seed N] [--tf-rate HZ] [--duration S] [--latency S] [--odom-* as above]\n"
+      "          [--seed N] [--tf-rate HZ] [--tf-margin S] [--duration S] [--latency S] [--odom-* as above]\n"
       "  --list              the planar scenarios (LaserScan on /scan): the paper's, calibration's, smooth\n"
       "  --list-paper        the paper's 19, then 5 LDS-01 ones in a small room (docs/RESULTS.md)\n"
       "  --list-calibration  the drives for timing calibration (SENSOR/normal|high/turns, "
@@ -59,7 +60,8 @@ int usage(const char* program) {
       "                      SENSOR/normal/turns drive, or with --scenario on that one's motion and\n"
       "                      world; no timing-fault options with it but --stamp-error S, which then\n"
       "                      adds S to the driver's stamp (a link's latency)\n"
-      "  --tf-margin S       odometry from S before the first scan to S after the last (default 0.1)\n"
+      "  --tf-margin S       odometry from S before the first scan (sweep) to S after the last (default "
+      "0.1)\n"
       "  --odom-noise R      odometry (/tf odom -> base_link, /odom) off by R relative per 20 ms step in\n"
       "                      x, y and yaw, a random walk away from the truth (default 0: perfect)\n"
       "  --odom-seed N       seed of the odometry noise and timing (default 1; --seed is the range's)\n"
@@ -91,7 +93,6 @@ int main(int argc, char** argv) {
   using namespace lidar_deskew;
   std::string scenario_name, cloud_scenario_name, convention_name, driver_name, bag_path, truth_path;
   bool clockwise = false, stamp_at_end = false, stamp_error_given = false, any_fault = false;
-  bool tf_margin_given = false;
   double duration = 0.0;
   sim::SimBagOptions options;
   sim::CloudBagOptions cloud_options;
@@ -145,7 +146,6 @@ int main(int argc, char** argv) {
       options.tf_rate = std::atof(argv[++a]);
     } else if (arg == "--tf-margin" && has_value) {
       options.tf_margin = std::atof(argv[++a]);
-      tf_margin_given = true;
     } else if (arg == "--odom-noise" && has_value) {
       options.odom_noise = std::atof(argv[++a]);
     } else if (arg == "--odom-yaw-scale" && has_value) {
@@ -212,10 +212,9 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "deskew_simulate: --cloud-scenario needs --convention (--list-conventions)\n");
     return 2;
   }
-  if (cloud && (clockwise || tf_margin_given)) {
+  if (cloud && clockwise) {
     std::fprintf(stderr,
-                 "deskew_simulate: --clockwise and --tf-margin are for planar scenarios (--scenario), not "
-                 "--cloud-scenario\n");
+                 "deskew_simulate: --clockwise is for planar scenarios (--scenario), not --cloud-scenario\n");
     return 2;
   }
   if (!cloud && !convention_name.empty()) {
@@ -262,6 +261,7 @@ int main(int argc, char** argv) {
       cloud_options.seed = options.seed;
       cloud_options.tf_rate = options.tf_rate;
       cloud_options.duration = duration;
+      cloud_options.tf_margin = options.tf_margin;
       cloud_options.odom_noise = options.odom_noise;
       cloud_options.odom_noise_seed = options.odom_noise_seed;
       cloud_options.odom_yaw_scale = options.odom_yaw_scale;

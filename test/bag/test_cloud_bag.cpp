@@ -521,6 +521,24 @@ TEST(CloudBagOdometry, Noise) {
   EXPECT_FALSE(perfect.truth.odom_timing.any());
 }
 
+// tf_margin: /tf from that long before the first sweep to that long after the last one's end.
+TEST(CloudBagOdometry, TfMargin) {
+  CloudBagOptions options;
+  options.duration = 0.1;
+  options.tf_margin = 1.0;
+  const std::string stem = ::testing::TempDir() + "/cloud_odom_margin";
+  writeCloudBag(findCloudScenario("VLP16/normal/arc"), options, stem + ".bag", stem + ".truth");
+  const RecordedBag recorded = readBag(stem + ".bag");
+  std::remove((stem + ".bag").c_str());
+  std::remove((stem + ".truth").c_str());
+  ASSERT_EQ(recorded.tf.size(), 106u);  // -1 .. 1.1 s at 50 Hz
+  EXPECT_EQ(static_cast<core::TimeNs>(recorded.tf.front().header.stamp.toNSec()),
+            options.epoch - 1'000'000'000);
+  EXPECT_EQ(static_cast<core::TimeNs>(recorded.tf.back().header.stamp.toNSec()),
+            options.epoch + 1'100'000'000);
+  EXPECT_TRUE(std::is_sorted(recorded.record_times.begin(), recorded.record_times.end()));
+}
+
 // Stamps jittered by up to 5 ms: one more sample at each end, every pose the full 3D truth at the grid
 // time (not at the stamp), the mount stamped at the earliest stamp.
 TEST(CloudBagOdometry, StampJitter) {
@@ -658,8 +676,11 @@ TEST(CloudBagOdometry, EverythingAtOnce) {
   EXPECT_EQ(first.truth.odom_timing.rate_max, 7.0);
   EXPECT_EQ(first.truth.odom_timing.wheel_base, 0.235);
   CloudBagOptions options;
-  options.odom_timing.tick = 0.001;  // without a wheel base
+  options.tf_margin = -0.1;
   const std::string bag_path = ::testing::TempDir() + "/cloud_odom_invalid.bag";
+  EXPECT_THROW(writeCloudBag(first.scenario, options, bag_path, bag_path + ".truth"), std::invalid_argument);
+  options = CloudBagOptions();
+  options.odom_timing.tick = 0.001;  // without a wheel base
   EXPECT_THROW(writeCloudBag(first.scenario, options, bag_path, bag_path + ".truth"), std::invalid_argument);
   options = CloudBagOptions();
   options.odom_noise = -0.1;

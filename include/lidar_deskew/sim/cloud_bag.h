@@ -85,10 +85,11 @@ sensor_msgs::PointCloud2 toPointCloud2(const SimulatedCloud& sweep, CloudConvent
 
 struct CloudBagOptions {
   CloudConvention convention = CloudConvention::kOuster;
-  bool noise = false;                              ///< add the LIDAR's Gaussian range noise
-  unsigned seed = 1;                               ///< of the noise
-  double tf_rate = 50.0;                           ///< [Hz] of /tf fixed -> base
-  double latency = 0.005;                          ///< [s] record time = last point's time + latency
+  bool noise = false;      ///< add the LIDAR's Gaussian range noise
+  unsigned seed = 1;       ///< of the noise
+  double tf_rate = 50.0;   ///< [Hz] of /tf fixed -> base
+  double latency = 0.005;  ///< [s] record time = last point's time + latency
+  double tf_margin = 0.1;  ///< [s] /tf from this before the first sweep to this after the last
   core::TimeNs epoch = 1'700'000'000'000'000'000;  ///< [ns] bag time of t = 0
   double duration = 0.0;                           ///< [s] > 0: instead of the scenario's
   std::string fixed_frame = "odom";
