@@ -7,9 +7,12 @@
 
 #include "lidar_deskew/eval/evaluate.h"
 #include "lidar_deskew/sim/sim_bag.h"
+#include "support/odometry_classes.h"
 
 namespace lidar_deskew::eval {
 namespace {
+
+using test::odometryTiming;
 
 Evaluation simulateAndEvaluate(const std::string& scenario, bool noise, double tf_rate = 50.0,
                                bool clockwise = false,
@@ -78,16 +81,6 @@ void expectNeverWorseThanTfsLine(const char* name, double noise, const sim::Odom
               scenarios.size(), linear_sum, fit_sum);
   EXPECT_LE(fit_sum, linear_sum) << name;
   EXPECT_LE(worse, 1) << name;
-}
-
-sim::OdometryTiming odometryTiming(double jitter, double rate_min, double rate_max, double tick) {
-  sim::OdometryTiming timing;
-  timing.jitter = jitter;
-  timing.rate_min = rate_min;
-  timing.rate_max = rate_max;
-  timing.tick = tick;
-  timing.wheel_base = tick > 0.0 ? 0.3 : 0.0;
-  return timing;
 }
 
 TEST(PaperCases, NoisyOdometryNeverWorseThanTfsLine) {  // 10 % per 20 ms step
