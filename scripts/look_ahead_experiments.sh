@@ -41,7 +41,8 @@ for scenario in "${scenarios[@]}"; do
 done
 cat "$out"
 echo
-awk -F'\t' 'NR == 1 { print "scenario (mean of seeds)\t" $3 "\t" $4 "\t" $5 "\t" $6 "\t" $7 "\t" $8 "\t" $9; next }
-  { if (!($1 in n)) order[++k] = $1; n[$1]++; for (c = 3; c <= NF; c++) s[$1, c] += $c }
+# Every column from the floor on (the last, twist_1, included).
+awk -F'\t' 'NR == 1 { line = "scenario (mean of seeds)"; for (c = 3; c <= NF; c++) line = line "\t" $c; print line; next }
+  { if (!($1 in n)) order[++k] = $1; n[$1]++; for (c = 3; c <= NF; c++) s[$1, c] += $c; columns = NF }
   END { for (i = 1; i <= k; i++) { key = order[i]; line = key
-        for (c = 3; c <= 9; c++) line = line sprintf("\t%.2f", s[key, c] / n[key]); print line } }' "$out"
+        for (c = 3; c <= columns; c++) line = line sprintf("\t%.2f", s[key, c] / n[key]); print line } }' "$out"
