@@ -200,6 +200,9 @@ int main(int argc, char** argv) {
         from_file.erase(name);
       parameters.insert(from_file.begin(), from_file.end());  // the command line's win
     }
+    // Offline nothing waits for the look-ahead's samples but the recording: the twist fit reads all it
+    // can (1 s, docs/DESIGN.md §5), unless told otherwise.
+    parameters.emplace("fit_look_ahead", std::to_string(core::kFitHorizon));
     options.params = ros_adapter::DeskewParams::load(ros_adapter::TextParams(parameters));
     const bag::BagDeskewSummary summary = bag::deskewBag(options);
     // The output is complete: from here on Ctrl-C ends the program as usual.

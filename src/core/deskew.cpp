@@ -335,6 +335,10 @@ void DeskewConfig::validate() const {
                                             ", " + std::to_string(kMaxKnotInterval) + "] s, got " +
                                             std::to_string(knot_interval));
   }
+  if (!(fit_look_ahead >= 0.0 && fit_look_ahead <= kFitHorizon)) {
+    throw InvalidInput("fit_look_ahead", "must be in [0, " + std::to_string(kFitHorizon) + "] s, got " +
+                                             std::to_string(fit_look_ahead));
+  }
 }
 
 PolarPoint toPolar(const Eigen::Vector3d& position) {
@@ -360,7 +364,7 @@ ScanDeskewer::ScanDeskewer(const DeskewConfig& config)
 const MotionSource& ScanDeskewer::motionFor(const MotionSource& motion, TimeNs begin, TimeNs end) {
   if (config_.interpolation == Interpolation::kLinear)
     return motion;
-  return twist_.prepare(motion, begin, end);
+  return twist_.prepare(motion, begin, end, secondsToNs(config_.fit_look_ahead));
 }
 
 void ScanDeskewer::updateBeamDirections(const PlanarScan& scan) {

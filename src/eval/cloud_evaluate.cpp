@@ -63,7 +63,9 @@ std::vector<Eigen::Vector3d> truthCorrected(const ros_adapter::PreparedCloud& pr
 }  // namespace
 
 CloudEvaluation evaluateCloudBag(const std::string& bag_path, const std::string& truth_path,
-                                 const std::string& cloud_topic, const ros_adapter::DeskewParams& params) {
+                                 const std::string& cloud_topic, const ros_adapter::DeskewParams& params,
+                                 CloudColumns columns) {
+  const bool all = columns == CloudColumns::kAll;
   const sim::CloudTruth truth = sim::readCloudTruth(truth_path);
   const sim::World3 world = sim::World3::byName(truth.world);
   rosbag::Bag bag(bag_path, rosbag::bagmode::Read);
@@ -96,8 +98,10 @@ CloudEvaluation evaluateCloudBag(const std::string& bag_path, const std::string&
     mrpt::poses::CPose3D first, last;
     try {
       for (ros_adapter::CloudProcessor* processor : {&ours, &per_point}) {
-        const ros_adapter::CloudOutputs out = processor->correct(prepared, *mount, tf->motion());
-        corrected_clouds.push_back(ours.prepare(out.cloud));  // reads x y z back
+        if (processor == &ours || all) {
+          const ros_adapter::CloudOutputs out = processor->correct(prepared, *mount, tf->motion());
+          corrected_clouds.push_back(ours.prepare(out.cloud));  // reads x y z back
+        }
       }
       first = tf->motion().basePose(prepared.first) + *mount;
       last = tf->motion().basePose(prepared.last) + *mount;
@@ -110,9 +114,11 @@ CloudEvaluation evaluateCloudBag(const std::string& bag_path, const std::string&
     }
     ++evaluation.clouds;
 
+    addDistances(world, reference, returnsOf(corrected_clouds[0]), corrected);
+    if (!all)
+      continue;
     addDistances(world, reference, returnsOf(prepared), raw);
     addDistances(world, reference, truthCorrected(prepared, truth, reference), noise_floor);
-    addDistances(world, reference, returnsOf(corrected_clouds[0]), corrected);
     addDistances(world, reference, returnsOf(corrected_clouds[1]), exact);
     // Constant velocity between the poses at the first and last return (lerp + slerp), composed with MRPT.
     const double span = std::max<double>(1, prepared.last - prepared.first);

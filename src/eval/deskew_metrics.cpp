@@ -116,7 +116,10 @@ int main(int argc, char** argv) {
   if (bag_path.empty() || truth_path.empty())
     return usage(argv[0]);
   try {
+    // Offline, as deskew_bag: the twist fit reads all it can after the sweep unless told otherwise.
     ros_adapter::DeskewParams params;
+    params.deskew.fit_look_ahead = core::kFitHorizon;
+    options.deskew.fit_look_ahead = core::kFitHorizon;
     if (!params_file.empty()) {
       const std::map<std::string, std::string> values = ros_adapter::readParamFile(params_file);
       std::vector<std::string> names;
@@ -124,9 +127,12 @@ int main(int argc, char** argv) {
         names.push_back(entry.first);
       for (const std::string& unknown : ros_adapter::DeskewParams::unknownNames(names))
         throw std::runtime_error(params_file + ": unknown parameter " + unknown);
-      params = ros_adapter::DeskewParams::load(ros_adapter::TextParams(values));
+      std::map<std::string, std::string> with_default = values;
+      with_default.emplace("fit_look_ahead", std::to_string(core::kFitHorizon));
+      params = ros_adapter::DeskewParams::load(ros_adapter::TextParams(with_default));
       options.timing = params.timing;
       options.deskew.interpolation = params.deskew.interpolation;
+      options.deskew.fit_look_ahead = params.deskew.fit_look_ahead;
     }
     if (cloud)
       return cloudMetrics(bag_path, truth_path, markdown, params);

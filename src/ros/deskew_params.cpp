@@ -78,6 +78,10 @@ const ParamSpec kSpecs[] = {
      "motion between tf samples: twist = each interval's body twist, changing as its neighbours' "
      "show where the samples are exact (exact on arcs, third order between samples); linear = tf2's own "
      "straight line"},
+    {"fit_look_ahead", "double", "0.0", "s", 0.0, 1.0, false, "", false, false,
+     "interpolation twist: the fit also reads tf's samples up to this long after the sweep's end, and "
+     "live the scan waits for them (up to tf_timeout); 0 = up to the sample closing the sweep. "
+     "deskew_bag: 1 unless given"},
     {"exact", "bool", "false", "", kNoBound, kNoBound, false, "", false, false,
      "one tf lookup per beam (verification, benchmarks)"},
     {"tf_timeout", "double", "0.2", "s", 0.0, 60.0, false, "", false, true,
@@ -259,6 +263,7 @@ DeskewParams DeskewParams::load(const ParamSource& source, const DeskewParams& b
     checkChoice("interpolation", text);
     params.deskew.interpolation = core::parseInterpolation(text);
   }
+  source.get("fit_look_ahead", params.deskew.fit_look_ahead);
   source.get("exact", params.exact);
   if (params.exact)
     params.deskew.knot_interval = 0.0;
@@ -323,6 +328,7 @@ void DeskewParams::validate() const {
     checkNumber("knot_interval", deskew.knot_interval);
   else if (deskew.knot_interval != 0.0)
     throw core::InvalidInput("knot_interval", "must be 0 with exact: true");
+  checkNumber("fit_look_ahead", deskew.fit_look_ahead);
   checkNumber("tf_timeout", tf_timeout);
   checkNumber("max_tf_gap", max_tf_gap);
   checkNumber("max_extrapolation", max_extrapolation);

@@ -141,6 +141,7 @@ void SweepPipeline<Processor>::reconfigure(const DeskewParams& next) {
   fixed(next.exact == params_.exact, "exact");  // before knot_interval, which exact sets to 0
   fixed(next.deskew.knot_interval == params_.deskew.knot_interval, "knot_interval");
   fixed(next.deskew.interpolation == params_.deskew.interpolation, "interpolation");
+  fixed(next.deskew.fit_look_ahead == params_.deskew.fit_look_ahead, "fit_look_ahead");
   fixed(next.input_queue_size == params_.input_queue_size, "input_queue_size");
   fixed(next.cloud_scan.enabled == params_.cloud_scan.enabled, "cloud_scan");  // its publisher
   fixed(next.cloud_time.field == params_.cloud_time.field, "time_field");
@@ -392,9 +393,13 @@ void SweepPipeline<Processor>::serveReady(double now) {
     const Pending& front = pending_.front();
     std::string never;
     const Coverage coverage = tf_.coverage(front.prepared.earliest(), front.prepared.latest(), &never);
-    // The mount may arrive after the motion (another connection): wait for both. tf only grows: later
-    // scans wait too.
-    if (coverage == Coverage::kNotYet || (coverage == Coverage::kCovered && !tf_.mountKnown(front.frame)))
+    // The mount may arrive after the motion (another connection): wait for both, and for tf to pass the
+    // sweep's end by the twist fit's look-ahead (fit_look_ahead; expire() serves it with what there is
+    // at tf_timeout). tf only grows: later scans wait too.
+    if (coverage == Coverage::kNotYet ||
+        (coverage == Coverage::kCovered &&
+         (!tf_.mountKnown(front.frame) ||
+          (lookAheadNs() > 0 && tf_.newestChainTime() < front.prepared.latest() + lookAheadNs()))))
       return;
     const Pending next = std::move(pending_.front());
     pending_.pop_front();
@@ -411,13 +416,17 @@ template <class Processor>
 void SweepPipeline<Processor>::serveRecorded(double now) {
   if (tf_.jumpPending())
     return;  // tf went back: a time jump or stale tf, told by the transforms that follow
-  // tf only grows: a sweep ending after tf's newest waits. Once tf has passed its end, tf either
-  // covers it or never will (its start before tf began, or gone from the cache).
+  // tf only grows: a sweep ending after tf's newest waits, and with a look-ahead of the twist fit
+  // (fit_look_ahead) until tf passes its end by that much, so that the fit reads the same samples
+  // however the recording interleaves tf and scans (flush() serves with what there is). Once tf has
+  // passed its end, tf either covers it or never will (its start before tf began, or gone from the cache).
   const core::TimeNs newest = tf_.newestChainTime();
+  const core::TimeNs look_ahead = lookAheadNs();
   std::map<std::string, bool> mount_known;  // by frame, for this call
   for (auto it = pending_.begin(); it != pending_.end();) {
     const core::TimeNs latest = it->prepared.latest();
-    if (newest == 0 || (latest > newest && latest <= newest + TfFeed::kFarNs) || onOtherLine(*it, newest)) {
+    if (newest == 0 || (latest + look_ahead > newest && latest <= newest + TfFeed::kFarNs) ||
+        onOtherLine(*it, newest)) {
       ++it;  // tf's newest on an old time line would serve it from that one's cache
       continue;
     }
@@ -507,7 +516,9 @@ void SweepPipeline<Processor>::expire(double now) {
   while (!pending_.empty() && now - pending_.front().arrival > longest) {
     const Pending expired = std::move(pending_.front());
     pending_.pop_front();
-    if (extrapolatable(expired)) {
+    if (coveredWithoutLookAhead(expired)) {
+      correct(expired, false, now);  // tf stopped short of the look-ahead: served with what there is
+    } else if (extrapolatable(expired)) {
       // The wait is over (tf_timeout, the latency budget): extrapolate rather than fail.
       correct(expired, true, now);
     } else if (!tf_.mountKnown(expired.frame)) {
@@ -519,6 +530,22 @@ void SweepPipeline<Processor>::expire(double now) {
     }
     serveReady(now);  // scans behind an expired one may be ready: serve them before they expire
   }
+}
+
+template <class Processor>
+core::TimeNs SweepPipeline<Processor>::lookAheadNs() const {
+  return params_.deskew.interpolation == core::Interpolation::kTwist ? core::secondsToNs(params_.deskew.fit_look_ahead)
+                                                                     : 0;
+}
+
+template <class Processor>
+bool SweepPipeline<Processor>::coveredWithoutLookAhead(const Pending& pending) const {
+  if (lookAheadNs() == 0)
+    return false;
+  const core::TimeNs newest = tf_.newestChainTime();
+  return newest >= pending.prepared.latest() && !onOtherLine(pending, newest) &&
+         tf_.mountKnown(pending.frame) &&
+         tf_.coverage(pending.prepared.earliest(), pending.prepared.latest(), nullptr) == Coverage::kCovered;
 }
 
 template <class Processor>

@@ -3,6 +3,7 @@
 #include <rosbag/bag.h>
 #include <tf2_msgs/TFMessage.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <random>
@@ -30,6 +31,22 @@ struct Layout {
   std::vector<Field> fields;
   std::uint32_t point_step;
 };
+
+/// The base pose a wheeled robot's odometry reports on 3D ground: x, y and yaw from `odometry`, z, roll
+/// and pitch as `truth` (whose planar part is `planar_truth`). Bit for bit `truth` when `odometry` is
+/// `planar_truth`.
+Pose3 withPlanarOdometry(const Pose3& truth, const Pose2& planar_truth, const Pose2& odometry) {
+  Pose3 pose = truth;
+  pose.position.x() += odometry.x - planar_truth.x;
+  pose.position.y() += odometry.y - planar_truth.y;
+  const double turn = odometry.yaw - planar_truth.yaw;  // about the fixed frame's z, before the tilt
+  if (turn != 0.0) {
+    Eigen::Matrix3d about_z;
+    about_z << std::cos(turn), -std::sin(turn), 0.0, std::sin(turn), std::cos(turn), 0.0, 0.0, 0.0, 1.0;
+    pose.rotation = about_z * truth.rotation;
+  }
+  return pose;
+}
 
 Layout layoutOf(CloudConvention convention) {
   switch (convention) {
@@ -283,40 +300,52 @@ void writeCloudBag(const CloudScenario& scenario, const CloudBagOptions& options
   const core::TimeNs epoch = options.epoch;
   const auto at = [&](double t) { return bagTime(epoch, t); };
 
+  if (!(options.tf_margin >= 0.0) || !std::isfinite(options.tf_margin))
+    throw std::invalid_argument("writeCloudBag: tf_margin must be finite and >= 0 s");
+  const double tf_begin = sweep_starts.front() - options.tf_margin;
+  const double tf_end = sweep_starts.back() + run.lidar.sweepPeriod() + options.tf_margin;
+  const long tf_samples = std::lround(std::floor((tf_end - tf_begin) * options.tf_rate + 1e-9));
+  // What the wheels measure of the planar motion, in the order a recorder writes it (throws for a bad
+  // odometry option).
+  const PiecewiseTrajectory planar(run.start, run.pieces);
+  const std::vector<OdometrySample> odometry =
+      recordOdometry(planar, tf_begin, tf_samples, tf_end, options.tf_rate, options.odom_noise,
+                     options.odom_noise_seed, options.odom_yaw_scale, options.odom_timing);
+
   rosbag::Bag bag(bag_path, rosbag::bagmode::Write);
 
-  const double tf_begin = sweep_starts.front() - 0.1;
-  const double tf_end = sweep_starts.back() + run.lidar.sweepPeriod() + 0.1;
+  // The mount first, at the earliest odometry stamp (tf_begin unless the stamps jitter).
+  double static_time = tf_begin;
+  for (const OdometrySample& sample : odometry)
+    static_time = std::min(static_time, sample.stamp);
   tf2_msgs::TFMessage static_transforms;
   static_transforms.transforms.push_back(
-      stamped(options.base_frame, options.lidar_frame, at(tf_begin), run.mount));
-  writeTfStatic(bag, toRosTime(at(tf_begin)), static_transforms);
+      stamped(options.base_frame, options.lidar_frame, at(static_time), run.mount));
+  writeTfStatic(bag, toRosTime(at(static_time)), static_transforms);
 
-  const long tf_samples = std::lround(std::floor((tf_end - tf_begin) * options.tf_rate + 1e-9));
-  const auto tfTime = [&](long k) { return tf_begin + static_cast<double>(k) / options.tf_rate; };
-  const auto writeTf = [&](long k) {
-    const double t = tfTime(k);
+  const auto writeTf = [&](const OdometrySample& sample) {
+    const Pose3 pose =
+        withPlanarOdometry(trajectory->pose(sample.time), planar.pose(sample.time), sample.pose);
     tf2_msgs::TFMessage transforms;
-    transforms.transforms.push_back(
-        stamped(options.fixed_frame, options.base_frame, at(t), trajectory->pose(t)));
-    bag.write("/tf", toRosTime(at(t)), transforms);
+    transforms.transforms.push_back(stamped(options.fixed_frame, options.base_frame, at(sample.stamp), pose));
+    bag.write("/tf", toRosTime(at(sample.record)), transforms);
   };
 
   // Written in time order, as a recorder does.
   std::mt19937 rng(options.seed);
-  long next_tf = 0;
+  std::size_t next_tf = 0;
   for (std::size_t k = 0; k < sweep_starts.size(); ++k) {
     const SimulatedCloud sweep = simulateSweep(world, *trajectory, run.mount, run.lidar, sweep_starts[k],
                                                options.noise ? &rng : nullptr);
     const double record_time = sweep.end_time + options.latency;
-    while (next_tf <= tf_samples && tfTime(next_tf) <= record_time)
-      writeTf(next_tf++);
+    while (next_tf < odometry.size() && odometry[next_tf].record <= record_time)
+      writeTf(odometry[next_tf++]);
     bag.write(
         options.cloud_topic, toRosTime(at(record_time)),
         toPointCloud2(sweep, options.convention, epoch, options.lidar_frame, static_cast<std::uint32_t>(k)));
   }
-  while (next_tf <= tf_samples)
-    writeTf(next_tf++);
+  while (next_tf < odometry.size())
+    writeTf(odometry[next_tf++]);
   bag.close();
 
   CloudTruth truth;
@@ -331,6 +360,10 @@ void writeCloudBag(const CloudScenario& scenario, const CloudBagOptions& options
   truth.pieces = run.pieces;
   truth.rough = run.rough;
   truth.sweep_start_times = sweep_starts;
+  truth.odom_noise = options.odom_noise;
+  truth.odom_noise_seed = options.odom_noise_seed;
+  truth.odom_yaw_scale = options.odom_yaw_scale;
+  truth.odom_timing = options.odom_timing;
   writeCloudTruth(truth, truth_path);
 }
 

@@ -139,6 +139,10 @@ void writeCloudTruth(const CloudTruth& truth, const std::string& path) {
   }
   for (const double time : truth.sweep_start_times)
     out << "sweep " << time << "\n";
+  if (truth.odom_noise != 0.0 || truth.odom_yaw_scale != 1.0 || truth.odom_timing.any()) {
+    truth_text::writeOdometry(out, truth.odom_noise, truth.odom_noise_seed, truth.odom_yaw_scale,
+                              truth.odom_timing);
+  }
   truth_text::finish(out, path);
 }
 
@@ -178,6 +182,9 @@ CloudTruth readCloudTruth(const std::string& path) {
       truth.sweep_start_times.push_back(time);
       return ok;
     }
+    if (truth_text::readOdometry(key, fields, &truth.odom_noise, &truth.odom_noise_seed,
+                                 &truth.odom_yaw_scale, &truth.odom_timing))
+      return true;
     return truth_text::readMotion(key, fields, &truth.start, &truth.pieces);
   };
   truth_text::readLines(path, [&](const std::string& key, std::istringstream& fields) {

@@ -13,7 +13,10 @@
 //                   [--odom-noise R [--odom-seed N]] [--odom-yaw-scale F] [--odom-jitter S]
 //                   [--odom-rate LO:HI] [--odom-ticks M:B] [--odom-delivery late:S|burst:N]...
 //   deskew_simulate --cloud-scenario VLP16/rough/arc --convention velodyne_first --bag out.bag
-//                   --truth out.truth [--noise] [--seed N] [--tf-rate HZ] [--duration S] [--latency S]
+//                   --truth out.truth [--noise] [--seed N] [--tf-rate HZ] [--tf-margin S] [--duration S]
+//                   [--latency S]
+//                   [--odom-noise R [--odom-seed N]] [--odom-yaw-scale F] [--odom-jitter S]...
+//                   (the --odom-* options as for --scenario)
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -41,7 +44,7 @@ int usage(const char* program) {
       "          [--odom-noise R [--odom-seed N]] [--odom-yaw-scale F] [--odom-jitter S]\n"
       "          [--odom-rate LO:HI] [--odom-ticks M:B] [--odom-delivery late:S|burst:N]...\n"
       "       %s --cloud-scenario NAME --convention NAME --bag OUT.bag --truth OUT.truth [--noise]\n"
-      "          [--seed N] [--tf-rate HZ] [--duration S] [--latency S]\n"
+      "          [--seed N] [--tf-rate HZ] [--tf-margin S] [--duration S] [--latency S] [--odom-* as above]\n"
       "  --list              the planar scenarios (LaserScan on /scan): the paper's, calibration's, smooth\n"
       "  --list-paper        the paper's 19, then 5 LDS-01 ones in a small room (docs/RESULTS.md)\n"
       "  --list-calibration  the drives for timing calibration (SENSOR/normal|high/turns, "
@@ -57,12 +60,14 @@ int usage(const char* program) {
       "                      SENSOR/normal/turns drive, or with --scenario on that one's motion and\n"
       "                      world; no timing-fault options with it but --stamp-error S, which then\n"
       "                      adds S to the driver's stamp (a link's latency)\n"
-      "  --tf-margin S       odometry from S before the first scan to S after the last (default 0.1)\n"
+      "  --tf-margin S       odometry from S before the first scan (sweep) to S after the last (default "
+      "0.1)\n"
       "  --odom-noise R      odometry (/tf odom -> base_link, /odom) off by R relative per 20 ms step in\n"
       "                      x, y and yaw, a random walk away from the truth (default 0: perfect)\n"
       "  --odom-seed N       seed of the odometry noise and timing (default 1; --seed is the range's)\n"
       "  --odom-yaw-scale F  odometry reports F x the true rotation (default 1; with or without noise)\n"
-      "odometry samples as robots produce them (planar only; recorded in the truth file):\n"
+      "odometry samples as robots produce them (recorded in the truth file; every --odom-* option works\n"
+      "with --cloud-scenario too, on the wheels' x, y and yaw: z, roll and pitch stay true):\n"
       "  --odom-jitter S     each stamp off the sample's true time by a uniform error in [-S, S]; the\n"
       "                      pose stays the true time's (a driver stamping on receipt)\n"
       "  --odom-rate LO:HI   irregular: each next sample 1/HI to 1/LO s (uniform) after the last\n"
@@ -88,7 +93,6 @@ int main(int argc, char** argv) {
   using namespace lidar_deskew;
   std::string scenario_name, cloud_scenario_name, convention_name, driver_name, bag_path, truth_path;
   bool clockwise = false, stamp_at_end = false, stamp_error_given = false, any_fault = false;
-  bool tf_margin_given = false, odom_noise_given = false;
   double duration = 0.0;
   sim::SimBagOptions options;
   sim::CloudBagOptions cloud_options;
@@ -142,19 +146,14 @@ int main(int argc, char** argv) {
       options.tf_rate = std::atof(argv[++a]);
     } else if (arg == "--tf-margin" && has_value) {
       options.tf_margin = std::atof(argv[++a]);
-      tf_margin_given = true;
     } else if (arg == "--odom-noise" && has_value) {
       options.odom_noise = std::atof(argv[++a]);
-      odom_noise_given = true;
     } else if (arg == "--odom-yaw-scale" && has_value) {
       options.odom_yaw_scale = std::atof(argv[++a]);
-      odom_noise_given = true;
     } else if (arg == "--odom-seed" && has_value) {
       options.odom_noise_seed = static_cast<unsigned>(std::strtoul(argv[++a], nullptr, 10));
-      odom_noise_given = true;
     } else if (arg == "--odom-jitter" && has_value) {
       options.odom_timing.jitter = std::atof(argv[++a]);
-      odom_noise_given = true;
     } else if ((arg == "--odom-rate" || arg == "--odom-ticks") && has_value) {
       double first = 0.0, second = 0.0;
       char end = 0;
@@ -169,7 +168,6 @@ int main(int argc, char** argv) {
         options.odom_timing.tick = first;
         options.odom_timing.wheel_base = second;
       }
-      odom_noise_given = true;
     } else if (arg == "--odom-delivery" && has_value) {
       const std::string value = argv[++a];
       char* end = nullptr;
@@ -182,7 +180,6 @@ int main(int argc, char** argv) {
         std::fprintf(stderr, "--odom-delivery takes late:S or burst:N, not '%s'\n", value.c_str());
         return 2;
       }
-      odom_noise_given = true;
     } else if (arg == "--stamp-error" && has_value) {
       options.timing_fault.stamp_error = std::atof(argv[++a]);
       stamp_error_given = any_fault = true;
@@ -215,11 +212,9 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "deskew_simulate: --cloud-scenario needs --convention (--list-conventions)\n");
     return 2;
   }
-  if (cloud && (clockwise || tf_margin_given || odom_noise_given)) {
+  if (cloud && clockwise) {
     std::fprintf(stderr,
-                 "deskew_simulate: --clockwise, --tf-margin and the --odom-* options are for planar "
-                 "scenarios "
-                 "(--scenario), not --cloud-scenario\n");
+                 "deskew_simulate: --clockwise is for planar scenarios (--scenario), not --cloud-scenario\n");
     return 2;
   }
   if (!cloud && !convention_name.empty()) {
@@ -266,6 +261,11 @@ int main(int argc, char** argv) {
       cloud_options.seed = options.seed;
       cloud_options.tf_rate = options.tf_rate;
       cloud_options.duration = duration;
+      cloud_options.tf_margin = options.tf_margin;
+      cloud_options.odom_noise = options.odom_noise;
+      cloud_options.odom_noise_seed = options.odom_noise_seed;
+      cloud_options.odom_yaw_scale = options.odom_yaw_scale;
+      cloud_options.odom_timing = options.odom_timing;
       sim::writeCloudBag(sim::findCloudScenario(cloud_scenario_name), cloud_options, bag_path, truth_path);
       return 0;
     }

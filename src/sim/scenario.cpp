@@ -1,6 +1,8 @@
 #include "lidar_deskew/sim/scenario.h"
 
+#include <algorithm>
 #include <cmath>
+#include <random>
 #include <stdexcept>
 #include <string>
 
@@ -251,21 +253,8 @@ void writeTruth(const Truth& truth, const std::string& path) {
   out << "zero_scan_time " << (truth.timing_fault.zero_scan_time ? 1 : 0) << "\n";
   out << "beam_period " << truth.beam_period << "\n";
   out << "sweep_period " << truth.sweep_period << "\n";
-  out << "odom_noise " << truth.odom_noise << "\n";
-  out << "odom_noise_seed " << truth.odom_noise_seed << "\n";
-  if (truth.odom_yaw_scale != 1.0)
-    out << "odom_yaw_scale " << truth.odom_yaw_scale << "\n";
-  const OdometryTiming& timing = truth.odom_timing;
-  if (timing.jitter != 0.0)
-    out << "odom_jitter " << timing.jitter << "\n";
-  if (timing.rate_min != 0.0)
-    out << "odom_rate " << timing.rate_min << " " << timing.rate_max << "\n";
-  if (timing.tick != 0.0)
-    out << "odom_ticks " << timing.tick << " " << timing.wheel_base << "\n";
-  if (timing.late != 0.0)
-    out << "odom_late " << timing.late << "\n";
-  if (timing.burst != 1)
-    out << "odom_burst " << timing.burst << "\n";
+  truth_text::writeOdometry(out, truth.odom_noise, truth.odom_noise_seed, truth.odom_yaw_scale,
+                            truth.odom_timing);
   truth_text::writeMotion(out, truth.start, truth.pieces);
   for (const Segment& segment : truth.world.segments()) {
     out << "wall " << segment.a.x() << " " << segment.a.y() << " " << segment.b.x() << " " << segment.b.y()
@@ -291,6 +280,80 @@ void OdometryTiming::validate() const {
     throw std::invalid_argument("odometry ticks: need a wheel base > 0 m");
   if (burst < 1)
     throw std::invalid_argument("odometry burst: must be >= 1 sample");
+}
+
+std::vector<OdometrySample> recordOdometry(const PiecewiseTrajectory& truth, double begin, long last,
+                                           double end, double rate, double noise, unsigned seed,
+                                           double yaw_scale, const OdometryTiming& timing) {
+  timing.validate();
+  // The samples' true times: the grid (jitter further out at each end), or irregular.
+  std::seed_seq timing_seed{seed, 0x0d0e7u};  // apart from the noise's generator
+  std::mt19937 timing_rng(timing_seed);
+  std::vector<double> times;
+  if (timing.rate_min > 0.0) {
+    std::uniform_real_distribution<double> interval(1.0 / timing.rate_max, 1.0 / timing.rate_min);
+    times.push_back(begin - timing.jitter);
+    while (times.back() < end + timing.jitter)
+      times.push_back(times.back() + interval(timing_rng));
+  } else {
+    const long extra = std::lround(std::ceil(timing.jitter * rate - 1e-9));
+    for (long k = -extra; k <= last + extra; ++k)
+      times.push_back(begin + static_cast<double>(k) / rate);
+  }
+  // What the odometry reports, in 20 ms steps from the first sample (throws for a bad noise).
+  const NoisyOdometry odometry(truth, times.front(), std::max(end, times.back()), noise, seed, yaw_scale);
+  const std::size_t n = times.size();
+  std::vector<OdometrySample> samples(n);
+  std::uniform_real_distribution<double> unit(-1.0, 1.0);
+  for (std::size_t i = 0; i < n; ++i) {
+    const double t = times[i];
+    OdometrySample& sample = samples[i];
+    sample.time = t;
+    sample.stamp = t + (timing.jitter > 0.0 ? timing.jitter * unit(timing_rng) : 0.0);
+    sample.record = sample.stamp + timing.late;
+    sample.pose = odometry.pose(t);
+    const NoisyOdometry::Factors factors = odometry.factors(t);
+    sample.speed = truth.speed(t) * factors.x;
+    sample.yaw_rate = truth.yawRate(t) * factors.yaw;
+  }
+  if (timing.tick > 0.0) {
+    // A differential drive's encoders: each wheel's travel along the odometry's motion, counted in whole
+    // ticks from a random phase; the pose integrated from each interval's counts, exactly along an arc.
+    const double tick = timing.tick, half_base = 0.5 * timing.wheel_base;
+    const auto sinc = [](double x) { return std::abs(x) < 1e-9 ? 1.0 : std::sin(x) / x; };
+    std::uniform_real_distribution<double> phase(0.0, tick);
+    double left = phase(timing_rng), right = phase(timing_rng);  // [m] continuous wheel travel
+    double left_ticks = std::floor(left / tick), right_ticks = std::floor(right / tick);
+    Pose2 pose = samples[0].pose;
+    for (std::size_t i = 1; i < n; ++i) {
+      const Pose2 step = odometry.pose(times[i - 1]).between(samples[i].pose);
+      const double arc = std::copysign(std::hypot(step.x, step.y), step.x) / sinc(0.5 * step.yaw);
+      left += arc - half_base * step.yaw;
+      right += arc + half_base * step.yaw;
+      const double new_left = std::floor(left / tick), new_right = std::floor(right / tick);
+      const double ds = 0.5 * tick * ((new_left - left_ticks) + (new_right - right_ticks));
+      const double dyaw = tick * ((new_right - right_ticks) - (new_left - left_ticks)) / timing.wheel_base;
+      left_ticks = new_left;
+      right_ticks = new_right;
+      const double chord = ds * sinc(0.5 * dyaw);
+      pose = pose.compose({chord * std::cos(0.5 * dyaw), chord * std::sin(0.5 * dyaw), dyaw});
+      samples[i].pose = pose;
+      const double dt = times[i] - times[i - 1];
+      samples[i].speed = ds / dt;
+      samples[i].yaw_rate = dyaw / dt;
+    }
+    samples[0].speed = n > 1 ? samples[1].speed : 0.0;
+    samples[0].yaw_rate = n > 1 ? samples[1].yaw_rate : 0.0;
+  }
+  // Bursts: every `burst` samples recorded together, at the last one's record time.
+  for (std::size_t first = 0; first < n; first += static_cast<std::size_t>(timing.burst)) {
+    const std::size_t burst_last = std::min(n, first + static_cast<std::size_t>(timing.burst)) - 1;
+    for (std::size_t i = first; i < burst_last; ++i)
+      samples[i].record = samples[burst_last].record;
+  }
+  std::stable_sort(samples.begin(), samples.end(),
+                   [](const OdometrySample& a, const OdometrySample& b) { return a.record < b.record; });
+  return samples;
 }
 
 Truth readTruth(const std::string& path) {
@@ -328,23 +391,9 @@ Truth readTruth(const std::string& path) {
       return static_cast<bool>(fields >> truth.beam_period);
     if (key == "sweep_period")
       return static_cast<bool>(fields >> truth.sweep_period);
-    if (key == "odom_noise")
-      return static_cast<bool>(fields >> truth.odom_noise);
-    if (key == "odom_noise_seed")
-      return static_cast<bool>(fields >> truth.odom_noise_seed);
-    if (key == "odom_yaw_scale")
-      return static_cast<bool>(fields >> truth.odom_yaw_scale);
-    OdometryTiming& timing = truth.odom_timing;
-    if (key == "odom_jitter")
-      return static_cast<bool>(fields >> timing.jitter);
-    if (key == "odom_rate")
-      return static_cast<bool>(fields >> timing.rate_min >> timing.rate_max);
-    if (key == "odom_ticks")
-      return static_cast<bool>(fields >> timing.tick >> timing.wheel_base);
-    if (key == "odom_late")
-      return static_cast<bool>(fields >> timing.late);
-    if (key == "odom_burst")
-      return static_cast<bool>(fields >> timing.burst);
+    if (truth_text::readOdometry(key, fields, &truth.odom_noise, &truth.odom_noise_seed,
+                                 &truth.odom_yaw_scale, &truth.odom_timing))
+      return true;
     if (key == "wall") {
       double ax, ay, bx, by;
       const bool ok = static_cast<bool>(fields >> ax >> ay >> bx >> by);

@@ -72,101 +72,25 @@ void writeSimulationBag(const sim::Scenario& scenario, const SimBagOptions& opti
       -std::ceil((options.tf_margin + claimed_before) * options.tf_rate - 1e-9) / options.tf_rate;
   const double tf_end = scenario.duration + scan_period + claimed_after + options.tf_margin;
   const sim::OdometryTiming& timing = options.odom_timing;
-  timing.validate();
   const long tf_samples = std::lround(std::floor((tf_end - tf_begin) * options.tf_rate));
-  const auto tfTime = [&](long k) { return tf_begin + static_cast<double>(k) / options.tf_rate; };
-  // The odometry samples' true times: the tf_rate grid (jitter further out at each end), or irregular.
-  std::seed_seq timing_seed{options.odom_noise_seed, 0x0d0e7u};  // apart from the noise's generator
-  std::mt19937 timing_rng(timing_seed);
-  std::vector<double> sample_times;
-  if (timing.rate_min > 0.0) {
-    std::uniform_real_distribution<double> interval(1.0 / timing.rate_max, 1.0 / timing.rate_min);
-    sample_times.push_back(tf_begin - timing.jitter);
-    while (sample_times.back() < tf_end + timing.jitter)
-      sample_times.push_back(sample_times.back() + interval(timing_rng));
-  } else {
-    const long extra = std::lround(std::ceil(timing.jitter * options.tf_rate - 1e-9));
-    for (long k = -extra; k <= tf_samples + extra; ++k)
-      sample_times.push_back(tfTime(k));
-  }
-  // What the odometry reports, in 20 ms steps from the first sample (throws for a bad odom_noise).
-  const sim::NoisyOdometry odometry_motion(trajectory, sample_times.front(),
-                                           std::max(tf_end, sample_times.back()), options.odom_noise,
-                                           options.odom_noise_seed, options.odom_yaw_scale);
-  const std::size_t n_samples = sample_times.size();
-  struct OdometrySample {
-    double stamp = 0.0;   // [s] as the message says
-    double record = 0.0;  // [s] when recorded
-    sim::Pose2 pose;
-    double speed = 0.0, yaw_rate = 0.0;  // the twist /odom reports
-  };
-  std::vector<OdometrySample> samples(n_samples);
-  std::uniform_real_distribution<double> unit(-1.0, 1.0);
-  for (std::size_t i = 0; i < n_samples; ++i) {
-    const double t = sample_times[i];
-    OdometrySample& sample = samples[i];
-    sample.stamp = t + (timing.jitter > 0.0 ? timing.jitter * unit(timing_rng) : 0.0);
-    sample.record = sample.stamp + timing.late;
-    sample.pose = odometry_motion.pose(t);
-    const sim::NoisyOdometry::Factors factors = odometry_motion.factors(t);
-    sample.speed = trajectory.speed(t) * factors.x;
-    sample.yaw_rate = trajectory.yawRate(t) * factors.yaw;
-  }
-  if (timing.tick > 0.0) {
-    // A differential drive's encoders: each wheel's travel along the odometry's motion, counted in whole
-    // ticks from a random phase; the pose integrated from each interval's counts, exactly along an arc.
-    const double tick = timing.tick, half_base = 0.5 * timing.wheel_base;
-    const auto sinc = [](double x) { return std::abs(x) < 1e-9 ? 1.0 : std::sin(x) / x; };
-    std::uniform_real_distribution<double> phase(0.0, tick);
-    double left = phase(timing_rng), right = phase(timing_rng);  // [m] continuous wheel travel
-    double left_ticks = std::floor(left / tick), right_ticks = std::floor(right / tick);
-    sim::Pose2 pose = samples[0].pose;
-    for (std::size_t i = 1; i < n_samples; ++i) {
-      const sim::Pose2 step = odometry_motion.pose(sample_times[i - 1]).between(samples[i].pose);
-      const double arc = std::copysign(std::hypot(step.x, step.y), step.x) / sinc(0.5 * step.yaw);
-      left += arc - half_base * step.yaw;
-      right += arc + half_base * step.yaw;
-      const double new_left = std::floor(left / tick), new_right = std::floor(right / tick);
-      const double ds = 0.5 * tick * ((new_left - left_ticks) + (new_right - right_ticks));
-      const double dyaw = tick * ((new_right - right_ticks) - (new_left - left_ticks)) / timing.wheel_base;
-      left_ticks = new_left;
-      right_ticks = new_right;
-      const double chord = ds * sinc(0.5 * dyaw);
-      pose = pose.compose({chord * std::cos(0.5 * dyaw), chord * std::sin(0.5 * dyaw), dyaw});
-      samples[i].pose = pose;
-      const double dt = sample_times[i] - sample_times[i - 1];
-      samples[i].speed = ds / dt;
-      samples[i].yaw_rate = dyaw / dt;
-    }
-    samples[0].speed = n_samples > 1 ? samples[1].speed : 0.0;
-    samples[0].yaw_rate = n_samples > 1 ? samples[1].yaw_rate : 0.0;
-  }
-  // Bursts: every `burst` samples recorded together, at the last one's record time.
-  for (std::size_t first = 0; first < n_samples; first += static_cast<std::size_t>(timing.burst)) {
-    const std::size_t last = std::min(n_samples, first + static_cast<std::size_t>(timing.burst)) - 1;
-    for (std::size_t i = first; i < last; ++i)
-      samples[i].record = samples[last].record;
-  }
-  // In the order a recorder writes them.
-  std::vector<std::size_t> record_order(n_samples);
-  for (std::size_t i = 0; i < n_samples; ++i)
-    record_order[i] = i;
-  std::stable_sort(record_order.begin(), record_order.end(),
-                   [&](std::size_t a, std::size_t b) { return samples[a].record < samples[b].record; });
+  // In the order a recorder writes them (throws for a bad odom_noise or odom_timing).
+  const std::vector<sim::OdometrySample> samples =
+      sim::recordOdometry(trajectory, tf_begin, tf_samples, tf_end, options.tf_rate, options.odom_noise,
+                          options.odom_noise_seed, options.odom_yaw_scale, timing);
+  const std::size_t n_samples = samples.size();
 
   rosbag::Bag bag(bag_path, rosbag::bagmode::Write);
 
   // The mount first, at the earliest odometry stamp (tf_begin unless the stamps jitter).
   double static_time = tf_begin;
-  for (const OdometrySample& sample : samples)
+  for (const sim::OdometrySample& sample : samples)
     static_time = std::min(static_time, sample.stamp);
   tf2_msgs::TFMessage static_transforms;
   static_transforms.transforms.push_back(
       stamped(options.base_frame, options.laser_frame, at(static_time), scenario.mount));
   writeTfStatic(bag, toRosTime(at(static_time)), static_transforms);
 
-  const auto writeOdometry = [&](std::size_t i) {
-    const OdometrySample& sample = samples[i];
+  const auto writeOdometry = [&](const sim::OdometrySample& sample) {
     tf2_msgs::TFMessage transforms;
     transforms.transforms.push_back(
         stamped(options.fixed_frame, options.base_frame, at(sample.stamp), sample.pose));
@@ -224,15 +148,15 @@ void writeSimulationBag(const sim::Scenario& scenario, const SimBagOptions& opti
 
   // Written in time order, as a recorder does (readers then go through the file once).
   const int scans = static_cast<int>(std::ceil(scenario.duration / scan_period - 1e-9));
-  std::size_t next_odometry = 0;  // in record_order
-  const auto odometryRecord = [&](std::size_t j) { return samples[record_order[j]].record; };
+  std::size_t next_odometry = 0;
+  const auto odometryRecord = [&](std::size_t j) { return samples[j].record; };
   for (int k = 0; k < scans; ++k) {
     // When the scan is recorded [s]: see writeScan.
     const double recorded = std::max((k + 1) * scan_period, k * scan_period + fault.stamp_error);
     while (next_odometry < n_samples && odometryRecord(next_odometry) <= recorded) {
       if (change && !mount_changed && change->time < odometryRecord(next_odometry))
         writeMountChange();
-      writeOdometry(record_order[next_odometry++]);
+      writeOdometry(samples[next_odometry++]);
     }
     if (change && !mount_changed && change->time < recorded)
       writeMountChange();  // before the scan recorded after it (after one recorded at its time)
@@ -241,7 +165,7 @@ void writeSimulationBag(const sim::Scenario& scenario, const SimBagOptions& opti
   while (next_odometry < n_samples) {
     if (change && !mount_changed && change->time < odometryRecord(next_odometry))
       writeMountChange();
-    writeOdometry(record_order[next_odometry++]);
+    writeOdometry(samples[next_odometry++]);
   }
   if (change && !mount_changed)
     writeMountChange();

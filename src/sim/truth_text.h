@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "lidar_deskew/sim/scenario.h"
 #include "lidar_deskew/sim/sim.h"
 
 namespace lidar_deskew::sim::truth_text {
@@ -54,6 +55,48 @@ inline bool readMotion(const std::string& key, std::istream& fields, Pose2* star
       static_cast<bool>(fields >> piece.duration >> piece.speed >> piece.acceleration >> piece.yaw_rate);
   pieces->push_back(piece);
   return ok;
+}
+
+/// The odometry's lines: "odom_noise R", "odom_noise_seed N"; "odom_yaw_scale F" only when not 1;
+/// "odom_jitter S", "odom_rate LO HI", "odom_ticks M B", "odom_late S", "odom_burst N" only when set.
+inline void writeOdometry(std::ostream& out, double noise, unsigned seed, double yaw_scale,
+                          const OdometryTiming& timing) {
+  out << "odom_noise " << noise << "\n";
+  out << "odom_noise_seed " << seed << "\n";
+  if (yaw_scale != 1.0)
+    out << "odom_yaw_scale " << yaw_scale << "\n";
+  if (timing.jitter != 0.0)
+    out << "odom_jitter " << timing.jitter << "\n";
+  if (timing.rate_min != 0.0)
+    out << "odom_rate " << timing.rate_min << " " << timing.rate_max << "\n";
+  if (timing.tick != 0.0)
+    out << "odom_ticks " << timing.tick << " " << timing.wheel_base << "\n";
+  if (timing.late != 0.0)
+    out << "odom_late " << timing.late << "\n";
+  if (timing.burst != 1)
+    out << "odom_burst " << timing.burst << "\n";
+}
+
+/// Reads one of writeOdometry's lines into the fields: whether it parsed. False also for another key.
+inline bool readOdometry(const std::string& key, std::istream& fields, double* noise, unsigned* seed,
+                         double* yaw_scale, OdometryTiming* timing) {
+  if (key == "odom_noise")
+    return static_cast<bool>(fields >> *noise);
+  if (key == "odom_noise_seed")
+    return static_cast<bool>(fields >> *seed);
+  if (key == "odom_yaw_scale")
+    return static_cast<bool>(fields >> *yaw_scale);
+  if (key == "odom_jitter")
+    return static_cast<bool>(fields >> timing->jitter);
+  if (key == "odom_rate")
+    return static_cast<bool>(fields >> timing->rate_min >> timing->rate_max);
+  if (key == "odom_ticks")
+    return static_cast<bool>(fields >> timing->tick >> timing->wheel_base);
+  if (key == "odom_late")
+    return static_cast<bool>(fields >> timing->late);
+  if (key == "odom_burst")
+    return static_cast<bool>(fields >> timing->burst);
+  return false;
 }
 
 /// Calls `line(key, fields)` for every line of `path` but blank ones and comments; `line` tells

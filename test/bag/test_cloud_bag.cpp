@@ -144,13 +144,16 @@ struct RecordedBag {
   std::vector<sensor_msgs::PointCloud2> clouds;
   std::vector<core::TimeNs> cloud_record_times;
   std::vector<geometry_msgs::TransformStamped> tf, tf_static;
-  bool tf_static_latched = false;  // its connection header says "latching: 1", as rosbag record's
+  std::vector<core::TimeNs> tf_record_times;  // of each /tf transform
+  std::vector<core::TimeNs> record_times;     // of every message, in file order
+  bool tf_static_latched = false;             // its connection header says "latching: 1", as rosbag record's
 };
 
 RecordedBag readBag(const std::string& path) {
   RecordedBag recorded;
   rosbag::Bag bag(path, rosbag::bagmode::Read);
   for (const rosbag::MessageInstance& message : rosbag::View(bag)) {
+    recorded.record_times.push_back(static_cast<core::TimeNs>(message.getTime().toNSec()));
     if (auto cloud = message.instantiate<sensor_msgs::PointCloud2>()) {
       EXPECT_EQ(message.getTopic(), "/points");
       recorded.clouds.push_back(*cloud);
@@ -163,6 +166,10 @@ RecordedBag readBag(const std::string& path) {
             latching != message.getConnectionHeader()->end() && latching->second == "1";
       }
       into.insert(into.end(), transforms->transforms.begin(), transforms->transforms.end());
+      if (message.getTopic() == "/tf") {
+        recorded.tf_record_times.insert(recorded.tf_record_times.end(), transforms->transforms.size(),
+                                        static_cast<core::TimeNs>(message.getTime().toNSec()));
+      }
     } else {
       ADD_FAILURE() << "unexpected message on " << message.getTopic();
     }
@@ -424,6 +431,260 @@ TEST(CloudBag, TwentyOs1SweepsAreQuickToWrite) {
   EXPECT_NEAR(errorStats(range_errors).rms, 0.03, 0.003);
   std::remove(bag_path.c_str());
   std::remove(truth_path.c_str());
+}
+
+// Odometry as robots produce it (CloudBagOptions' odom_*), on 0.3 s of VLP16/rough/arc (1.5 m/s, 2 rad/s
+// on rough ground): /tf's planar part (x, y, yaw) is what the wheels report, its z, roll and pitch the
+// truth at the sample's true time; the clouds are the same as with perfect odometry; the truth file
+// records the odometry.
+struct CloudOdometryBag {
+  CloudScenario scenario = findCloudScenario("VLP16/rough/arc");
+  CloudBagOptions options;
+  RecordedBag recorded;
+  CloudTruth truth;
+  std::vector<Pose2> planar;  // /tf's x, y and yaw
+  double seconds(core::TimeNs time) const { return core::nsToSeconds(time - options.epoch); }
+  double stamp(std::size_t k) const {
+    return seconds(static_cast<core::TimeNs>(recorded.tf[k].header.stamp.toNSec()));
+  }
+};
+
+CloudOdometryBag writeCloudOdometryBag(double noise, const OdometryTiming& timing, const std::string& label,
+                                       unsigned seed = 4) {
+  CloudOdometryBag result;
+  result.options.convention = CloudConvention::kVelodyneFirst;
+  result.options.duration = 0.3;
+  result.options.odom_noise = noise;
+  result.options.odom_noise_seed = seed;
+  result.options.odom_timing = timing;
+  const std::string stem = ::testing::TempDir() + "/cloud_odom_" + label;
+  writeCloudBag(result.scenario, result.options, stem + ".bag", stem + ".truth");
+  result.recorded = readBag(stem + ".bag");
+  result.truth = readCloudTruth(stem + ".truth");
+  std::remove((stem + ".bag").c_str());
+  std::remove((stem + ".truth").c_str());
+  for (const geometry_msgs::TransformStamped& transform : result.recorded.tf) {
+    const Pose3 pose = toPose(transform.transform);
+    result.planar.push_back(
+        {pose.position.x(), pose.position.y(), std::atan2(pose.rotation(1, 0), pose.rotation(0, 0))});
+  }
+  return result;
+}
+
+/// Every /tf pose's z and tilt (the rotation's last row: roll and pitch) are the truth's at `true_time(k)`.
+template <typename TrueTime>
+void expectTrueHeightAndTilt(const CloudOdometryBag& bag, TrueTime true_time, double tolerance) {
+  const auto trajectory = bag.scenario.trajectory();
+  double most_tilt = 0.0;
+  for (std::size_t k = 0; k < bag.recorded.tf.size(); ++k) {
+    const Pose3 pose = toPose(bag.recorded.tf[k].transform), truth = trajectory->pose(true_time(k));
+    EXPECT_NEAR(pose.position.z(), truth.position.z(), tolerance) << k;
+    EXPECT_LT((pose.rotation.row(2) - truth.rotation.row(2)).norm(), tolerance) << k;
+    most_tilt = std::max(most_tilt, std::abs(truth.rotation(2, 0)) + std::abs(truth.rotation(2, 1)));
+  }
+  EXPECT_GT(most_tilt, 0.02);  // rough ground: there is a tilt to keep
+}
+
+// 10 % per 20 ms step: x, y and yaw are NoisyOdometry's (same start, steps and seed) at the 50 Hz grid,
+// drifting from the truth; z, roll and pitch are true; the clouds are bit for bit the perfect bag's.
+TEST(CloudBagOdometry, Noise) {
+  const CloudOdometryBag perfect = writeCloudOdometryBag(0.0, {}, "perfect");
+  const CloudOdometryBag noisy = writeCloudOdometryBag(0.1, {}, "noise", 9);
+  ASSERT_EQ(noisy.recorded.tf.size(), 26u);  // -0.1 .. 0.4 s
+  ASSERT_EQ(noisy.recorded.clouds.size(), perfect.recorded.clouds.size());
+  for (std::size_t k = 0; k < noisy.recorded.clouds.size(); ++k)
+    EXPECT_EQ(noisy.recorded.clouds[k].data, perfect.recorded.clouds[k].data) << k;
+  const PiecewiseTrajectory truth(noisy.scenario.start, noisy.scenario.pieces);
+  const NoisyOdometry model(truth, -0.1, 0.4, 0.1, 9);
+  double drift = 0.0, heading_drift = 0.0;
+  for (std::size_t k = 0; k < noisy.planar.size(); ++k) {
+    const double t = -0.1 + static_cast<double>(k) / 50.0;
+    EXPECT_NEAR(noisy.stamp(k), t, 1e-9) << k;
+    const Pose2 expected = model.pose(t), true_pose = truth.pose(t);
+    EXPECT_NEAR(noisy.planar[k].x, expected.x, 1e-9) << k;
+    EXPECT_NEAR(noisy.planar[k].y, expected.y, 1e-9) << k;
+    EXPECT_NEAR(std::remainder(noisy.planar[k].yaw - expected.yaw, 2 * M_PI), 0.0, 1e-9) << k;
+    EXPECT_NEAR(perfect.planar[k].x, true_pose.x, 1e-12) << k;
+    drift = std::max(drift, std::hypot(noisy.planar[k].x - true_pose.x, noisy.planar[k].y - true_pose.y));
+    heading_drift =
+        std::max(heading_drift, std::abs(std::remainder(noisy.planar[k].yaw - true_pose.yaw, 2 * M_PI)));
+  }
+  expectTrueHeightAndTilt(
+      noisy, [&](std::size_t k) { return -0.1 + static_cast<double>(k) / 50.0; }, 1e-9);
+  std::printf("odometry 10 %% per step on rough ground: drift up to %.1f mm, %.2f deg over 0.5 s\n",
+              1e3 * drift, heading_drift * 180 / M_PI);
+  EXPECT_GT(drift, 0.001);
+  EXPECT_GT(heading_drift, 0.001);
+  EXPECT_EQ(noisy.truth.odom_noise, 0.1);
+  EXPECT_EQ(noisy.truth.odom_noise_seed, 9u);
+  EXPECT_EQ(perfect.truth.odom_noise, 0.0);
+  EXPECT_FALSE(perfect.truth.odom_timing.any());
+}
+
+// tf_margin: /tf from that long before the first sweep to that long after the last one's end.
+TEST(CloudBagOdometry, TfMargin) {
+  CloudBagOptions options;
+  options.duration = 0.1;
+  options.tf_margin = 1.0;
+  const std::string stem = ::testing::TempDir() + "/cloud_odom_margin";
+  writeCloudBag(findCloudScenario("VLP16/normal/arc"), options, stem + ".bag", stem + ".truth");
+  const RecordedBag recorded = readBag(stem + ".bag");
+  std::remove((stem + ".bag").c_str());
+  std::remove((stem + ".truth").c_str());
+  ASSERT_EQ(recorded.tf.size(), 106u);  // -1 .. 1.1 s at 50 Hz
+  EXPECT_EQ(static_cast<core::TimeNs>(recorded.tf.front().header.stamp.toNSec()),
+            options.epoch - 1'000'000'000);
+  EXPECT_EQ(static_cast<core::TimeNs>(recorded.tf.back().header.stamp.toNSec()),
+            options.epoch + 1'100'000'000);
+  EXPECT_TRUE(std::is_sorted(recorded.record_times.begin(), recorded.record_times.end()));
+}
+
+// Stamps jittered by up to 5 ms: one more sample at each end, every pose the full 3D truth at the grid
+// time (not at the stamp), the mount stamped at the earliest stamp.
+TEST(CloudBagOdometry, StampJitter) {
+  OdometryTiming timing;
+  timing.jitter = 0.005;
+  const CloudOdometryBag bag = writeCloudOdometryBag(0.0, timing, "jitter");
+  ASSERT_EQ(bag.recorded.tf.size(), 28u);  // -0.12 .. 0.42 s
+  const auto trajectory = bag.scenario.trajectory();
+  double largest_error = 0.0, earliest = 1.0;
+  for (std::size_t k = 0; k < bag.recorded.tf.size(); ++k) {
+    const double t = -0.12 + static_cast<double>(k) / 50.0;
+    EXPECT_LE(std::abs(bag.stamp(k) - t), 0.005 + 1e-9) << k;
+    largest_error = std::max(largest_error, std::abs(bag.stamp(k) - t));
+    earliest = std::min(earliest, bag.stamp(k));
+    const Pose3 pose = toPose(bag.recorded.tf[k].transform), truth = trajectory->pose(t);
+    EXPECT_LT((pose.position - truth.position).norm(), 1e-12) << k;
+    EXPECT_LT((pose.rotation - truth.rotation).norm(), 1e-12) << k;
+    EXPECT_EQ(bag.recorded.tf_record_times[k],
+              static_cast<core::TimeNs>(bag.recorded.tf[k].header.stamp.toNSec()));
+  }
+  EXPECT_GT(largest_error, 0.003);
+  EXPECT_NEAR(bag.seconds(static_cast<core::TimeNs>(bag.recorded.tf_static[0].header.stamp.toNSec())),
+              earliest, 1e-9);
+  EXPECT_EQ(bag.truth.odom_timing.jitter, 0.005);
+}
+
+// 5 to 11 Hz: every interval in [1/11, 1/5] s, each pose the truth at its stamp, the stamps covering
+// every cloud's points.
+TEST(CloudBagOdometry, IrregularRate) {
+  OdometryTiming timing;
+  timing.rate_min = 5.0;
+  timing.rate_max = 11.0;
+  const CloudOdometryBag bag = writeCloudOdometryBag(0.0, timing, "rate");
+  const auto trajectory = bag.scenario.trajectory();
+  ASSERT_GE(bag.recorded.tf.size(), 3u);
+  for (std::size_t k = 0; k < bag.recorded.tf.size(); ++k) {
+    const Pose3 pose = toPose(bag.recorded.tf[k].transform), truth = trajectory->pose(bag.stamp(k));
+    EXPECT_LT((pose.position - truth.position).norm(), 1e-6) << k;  // the stamp is the time rounded to 1 ns
+    EXPECT_LT((pose.rotation - truth.rotation).norm(), 1e-6) << k;
+    if (k > 0) {
+      EXPECT_GE(bag.stamp(k) - bag.stamp(k - 1), 1.0 / 11.0 - 2e-9) << k;
+      EXPECT_LE(bag.stamp(k) - bag.stamp(k - 1), 1.0 / 5.0 + 2e-9) << k;
+    }
+  }
+  EXPECT_LE(bag.stamp(0), -0.1);
+  EXPECT_GE(bag.stamp(bag.recorded.tf.size() - 1), 0.4);
+  EXPECT_EQ(bag.truth.odom_timing.rate_min, 5.0);
+  EXPECT_EQ(bag.truth.odom_timing.rate_max, 11.0);
+}
+
+// Encoders of 1 mm ticks on a 0.235 m wheel base: between samples the planar step is whole ticks (heading
+// nr - nl ticks of 1 mm / 0.235 m, arc (nl + nr) / 2 ticks, of one parity), the heading never more than
+// two ticks' worth off the truth; z, roll and pitch the truth's.
+TEST(CloudBagOdometry, EncoderTicks) {
+  OdometryTiming timing;
+  timing.tick = 0.001;
+  timing.wheel_base = 0.235;  // not 0.3: 2 rad/s x 20 ms would be 12 whole ticks
+  const CloudOdometryBag bag = writeCloudOdometryBag(0.0, timing, "ticks");
+  ASSERT_EQ(bag.recorded.tf.size(), 26u);
+  const PiecewiseTrajectory truth(bag.scenario.start, bag.scenario.pieces);
+  const auto nearInteger = [](double x) { return std::abs(x - std::round(x)); };
+  double largest_residual = 0.0, largest_heading_error = 0.0;
+  for (std::size_t k = 1; k < bag.planar.size(); ++k) {
+    const Pose2 step = bag.planar[k - 1].between(bag.planar[k]);
+    const double half = 0.5 * step.yaw;
+    const double arc =
+        std::copysign(std::hypot(step.x, step.y), step.x) * (half == 0.0 ? 1.0 : half / std::sin(half));
+    const double difference = step.yaw * 0.235 / 0.001, sum = 2.0 * arc / 0.001;  // nr - nl, nr + nl
+    largest_residual = std::max({largest_residual, nearInteger(difference), nearInteger(sum)});
+    EXPECT_EQ(std::lround(sum + difference) % 2, 0) << k;
+    largest_heading_error =
+        std::max(largest_heading_error,
+                 std::abs(std::remainder(bag.planar[k].yaw - truth.pose(bag.stamp(k)).yaw, 2 * M_PI)));
+  }
+  expectTrueHeightAndTilt(
+      bag, [&](std::size_t k) { return bag.stamp(k); }, 1e-6);
+  std::printf(
+      "1 mm ticks on rough ground: increments within %.1e of whole ticks, heading off by up to %.2f deg\n",
+      largest_residual, largest_heading_error * 180.0 / M_PI);
+  EXPECT_LT(largest_residual, 1e-6);
+  EXPECT_LE(largest_heading_error, 2.0 * 0.001 / 0.235 + 1e-9);
+  EXPECT_GT(largest_heading_error, 0.0005);
+  EXPECT_EQ(bag.truth.odom_timing.tick, 0.001);
+  EXPECT_EQ(bag.truth.odom_timing.wheel_base, 0.235);
+}
+
+// Recorded 30 ms late in bursts of 3: /tf sample k recorded at the stamp of the last of its burst + 30 ms,
+// every message in record order, the clouds still recorded at their last point + 5 ms.
+TEST(CloudBagOdometry, LateAndBursty) {
+  OdometryTiming timing;
+  timing.late = 0.03;
+  timing.burst = 3;
+  const CloudOdometryBag bag = writeCloudOdometryBag(0.0, timing, "delivery");
+  const std::size_t n = bag.recorded.tf.size();
+  ASSERT_EQ(n, 26u);
+  for (std::size_t k = 0; k < n; ++k) {
+    EXPECT_NEAR(bag.stamp(k), -0.1 + static_cast<double>(k) / 50.0, 1e-9) << k;
+    const std::size_t last = std::min(n - 1, 3 * (k / 3) + 2);
+    EXPECT_NEAR(static_cast<double>(bag.recorded.tf_record_times[k] -
+                                    static_cast<core::TimeNs>(bag.recorded.tf[last].header.stamp.toNSec())),
+                30e6, 2.0)
+        << k;
+  }
+  EXPECT_TRUE(std::is_sorted(bag.recorded.record_times.begin(), bag.recorded.record_times.end()));
+  for (std::size_t k = 0; k < bag.recorded.clouds.size(); ++k)
+    EXPECT_NEAR(bag.seconds(bag.recorded.cloud_record_times[k]), 0.1 * static_cast<double>(k + 1) + 0.005,
+                1e-3)
+        << k;
+  EXPECT_EQ(bag.truth.odom_timing.late, 0.03);
+  EXPECT_EQ(bag.truth.odom_timing.burst, 3);
+}
+
+// All of it together: the same seed writes the same bag, another seed another one; everything in the
+// truth file; a bad option refused.
+TEST(CloudBagOdometry, EverythingAtOnce) {
+  OdometryTiming timing;
+  timing.jitter = 0.005;
+  timing.rate_min = 5.0;
+  timing.rate_max = 7.0;
+  timing.tick = 0.001;
+  timing.wheel_base = 0.235;
+  const CloudOdometryBag first = writeCloudOdometryBag(0.1, timing, "all_a", 7);
+  const CloudOdometryBag again = writeCloudOdometryBag(0.1, timing, "all_b", 7);
+  const CloudOdometryBag other = writeCloudOdometryBag(0.1, timing, "all_c", 8);
+  ASSERT_EQ(first.planar.size(), again.planar.size());
+  for (std::size_t k = 0; k < first.planar.size(); ++k) {
+    EXPECT_EQ(first.planar[k].x, again.planar[k].x);
+    EXPECT_EQ(first.planar[k].yaw, again.planar[k].yaw);
+    EXPECT_EQ(first.stamp(k), again.stamp(k));
+  }
+  EXPECT_NE(first.stamp(1), other.stamp(1));
+  EXPECT_EQ(first.truth.odom_noise, 0.1);
+  EXPECT_EQ(first.truth.odom_noise_seed, 7u);
+  EXPECT_EQ(first.truth.odom_timing.jitter, 0.005);
+  EXPECT_EQ(first.truth.odom_timing.rate_max, 7.0);
+  EXPECT_EQ(first.truth.odom_timing.wheel_base, 0.235);
+  CloudBagOptions options;
+  options.tf_margin = -0.1;
+  const std::string bag_path = ::testing::TempDir() + "/cloud_odom_invalid.bag";
+  EXPECT_THROW(writeCloudBag(first.scenario, options, bag_path, bag_path + ".truth"), std::invalid_argument);
+  options = CloudBagOptions();
+  options.odom_timing.tick = 0.001;  // without a wheel base
+  EXPECT_THROW(writeCloudBag(first.scenario, options, bag_path, bag_path + ".truth"), std::invalid_argument);
+  options = CloudBagOptions();
+  options.odom_noise = -0.1;
+  EXPECT_THROW(writeCloudBag(first.scenario, options, bag_path, bag_path + ".truth"), std::invalid_argument);
 }
 
 }  // namespace

@@ -7,9 +7,12 @@
 
 #include "lidar_deskew/eval/evaluate.h"
 #include "lidar_deskew/sim/sim_bag.h"
+#include "support/odometry_classes.h"
 
 namespace lidar_deskew::eval {
 namespace {
+
+using test::odometryTiming;
 
 Evaluation simulateAndEvaluate(const std::string& scenario, bool noise, double tf_rate = 50.0,
                                bool clockwise = false,
@@ -33,6 +36,74 @@ Evaluation simulateAndEvaluate(const std::string& scenario, bool noise, double t
       scenario.c_str(), noise ? "on" : "off", tf_rate, result.raw.rms, result.cloud.rms, result.scan.rms,
       result.laser_geometry.rms);
   return result;
+}
+
+// Odometry as robots produce it: every planar scenario of the paper's suite and the LDS-01's fast smooth
+// drive, range noise on, at each odometry class below. The twist fit as deskew_bag runs it (a 1 s
+// look-ahead) against tf's line (interpolation linear): over the class at most as bad, and worse by
+// more than 0.5 % (where both follow the samples: arcs against chords) on at most one scenario, named.
+// Not yet never: with everything at once (5-7 Hz: too few samples in the window to estimate the
+// noise, so the samples are taken as exact), LDS-01/high/rotation 21.5 against 20.7.
+void expectNeverWorseThanTfsLine(const char* name, double noise, const sim::OdometryTiming& timing,
+                                 bool range_noise = true) {
+  std::vector<sim::Scenario> scenarios = sim::paperScenarios();
+  for (const sim::Scenario& smooth : sim::smoothScenarios()) {
+    if (smooth.name == "LDS-01/high/smooth")
+      scenarios.push_back(smooth);
+  }
+  double linear_sum = 0.0, fit_sum = 0.0;
+  int worse = 0;
+  for (std::size_t k = 0; k < scenarios.size(); ++k) {
+    const std::string bag = ::testing::TempDir() + "/paper_case_odometry_" + std::to_string(::getpid()) + ".bag";
+    const std::string truth = bag + ".truth";
+    sim::SimBagOptions options;
+    options.noise = range_noise;
+    options.seed = static_cast<unsigned>(k % 3 + 1);
+    options.odom_noise = noise;
+    options.odom_noise_seed = options.seed;
+    options.odom_timing = timing;
+    sim::writeSimulationBag(scenarios[k], options, bag, truth);
+    EvaluateOptions linear, fitted;
+    linear.deskew.interpolation = core::Interpolation::kLinear;
+    fitted.deskew.fit_look_ahead = core::kFitHorizon;
+    const Evaluation line = evaluateBag(bag, truth, linear), fit = evaluateBag(bag, truth, fitted);
+    std::remove(bag.c_str());
+    std::remove(truth.c_str());
+    if (fit.cloud.rms > 1.005 * line.cloud.rms) {
+      ++worse;
+      std::printf("%-18s %s: twist %.2f, linear %.2f mm RMS: worse\n", name, scenarios[k].name.c_str(), fit.cloud.rms,
+                  line.cloud.rms);
+    }
+    linear_sum += line.cloud.rms;
+    fit_sum += fit.cloud.rms;
+  }
+  std::printf("%-18s %zu scenarios: linear %.2f, twist with a 1 s look-ahead %.2f mm RMS (sum)\n", name,
+              scenarios.size(), linear_sum, fit_sum);
+  EXPECT_LE(fit_sum, linear_sum) << name;
+  EXPECT_LE(worse, 1) << name;
+}
+
+TEST(PaperCases, NoisyOdometryNeverWorseThanTfsLine) {  // 10 % per 20 ms step
+  expectNeverWorseThanTfsLine("noise 10 %", 0.1, {});
+}
+TEST(PaperCases, JitteringStampsNeverWorseThanTfsLine) {  // stamps off by up to 5 ms
+  expectNeverWorseThanTfsLine("stamps +-5 ms", 0.0, odometryTiming(0.005, 0.0, 0.0, 0.0));
+}
+TEST(PaperCases, IrregularOdometryNeverWorseThanTfsLine) {  // 5-11 Hz
+  expectNeverWorseThanTfsLine("5-11 Hz", 0.0, odometryTiming(0.0, 5.0, 11.0, 0.0));
+}
+TEST(PaperCases, EncoderTicksNeverWorseThanTfsLine) {  // 1 mm ticks
+  expectNeverWorseThanTfsLine("1 mm ticks", 0.0, odometryTiming(0.0, 0.0, 0.0, 0.001));
+}
+// Range noise off, the wheel base of RESULTS.md's table (0.235 m): where ILD26TRI/varying's quantised
+// turn rate once passed for noise (515.74 mm against tf's line's 14.08 at seed 1).
+TEST(PaperCases, EncoderTicksWithoutRangeNoiseNeverWorseThanTfsLine) {
+  sim::OdometryTiming ticks = odometryTiming(0.0, 0.0, 0.0, 0.001);
+  ticks.wheel_base = 0.235;
+  expectNeverWorseThanTfsLine("1 mm ticks, exact ranges", 0.0, ticks, false);
+}
+TEST(PaperCases, EverythingAtOnceNeverWorseThanTfsLine) {  // 5-7 Hz, noise, jitter and ticks
+  expectNeverWorseThanTfsLine("5-7 Hz, all", 0.1, odometryTiming(0.005, 5.0, 7.0, 0.001));
 }
 
 // Noise off: what is left is the correction's own error. tf at 50 Hz is linear between samples, which

@@ -2,6 +2,8 @@
 // messages, the simulator's truth. The robot drives a 6 m/s, 5 rad/s arc; tf at 50 Hz; UTM-30LX scans.
 #include <gtest/gtest.h>
 
+#include <random>
+
 #include "lidar_deskew/ros/scan_pipeline.h"
 #include "lidar_deskew/ros/text_params.h"
 #include "lidar_deskew/sim/sim.h"
@@ -173,6 +175,41 @@ TEST(ScanPipeline, RepublishedMountServesTheScansEndingAfterItsStamp) {
       std::printf("scan %zu (%s mount): %.3f mm RMS\n", k, k < 5 ? "old" : "new", 1e3 * error);
     EXPECT_LT(error, 1e-3) << k;  // the waiting scan with the new mount: 32 mm
   }
+}
+
+// Live with a look-ahead of the twist fit (fit_look_ahead): a scan tf covers waits until tf passes its
+// end by the look-ahead, and at tf_timeout it is served with what there is, not failed.
+TEST(ScanPipeline, LiveScanWaitsForTheLookAheadThenIsServedWithWhatThereIs) {
+  ros_adapter::DeskewParams params;
+  params.tf_timeout = 0.3;
+  params.deskew.fit_look_ahead = 0.1;
+  PipelineRun run(Drive(), params);
+  const double period = 1.0 / run.drive.model.rate;
+  run.statics(0.0);
+  run.tfUntil(0.2 + period + 0.04);
+  run.pipeline.add(run.drive.scanAt(0.2), 0.2 + period + 0.01);
+  EXPECT_EQ(run.pipeline.waiting(), 1u);  // tf covers the sweep, not its end + 0.1 s
+  run.tfUntil(0.2 + period + 0.08);
+  EXPECT_EQ(run.pipeline.waiting(), 1u);
+  run.tfUntil(0.2 + period + 0.12);  // tf every 20 ms: the first sample at or after end + 0.1 s
+  EXPECT_EQ(run.pipeline.waiting(), 0u);
+  ASSERT_EQ(run.results.size(), 1u);
+  EXPECT_TRUE(run.results[0].corrected);
+  // tf stops 0.04 s after the next sweep: served at tf_timeout with the samples there are.
+  const double next = 0.6;
+  run.tfUntil(next + period + 0.04);
+  run.pipeline.add(run.drive.scanAt(next), next + period + 0.01);
+  run.pipeline.expire(next + period + 0.3);
+  EXPECT_EQ(run.pipeline.waiting(), 1u);
+  run.pipeline.expire(next + period + 0.32);
+  EXPECT_EQ(run.pipeline.waiting(), 0u);
+  ASSERT_EQ(run.results.size(), 2u);
+  EXPECT_TRUE(run.results[1].corrected);
+  EXPECT_EQ(run.pipeline.counters().dropped_tf, 0u);
+  // tf's samples are exact: the corrected points lie on the true walls either way.
+  const std::vector<double> distances = run.cloudDistances();
+  ASSERT_FALSE(distances.empty());
+  EXPECT_LT(*std::max_element(distances.begin(), distances.end()), 1e-3);
 }
 
 // Waiting is measured on the owner's clock: a scan waits up to tf_timeout for tf, then fails.
@@ -596,6 +633,61 @@ TEST(ScanPipeline, RecordingWaitsForLateTfAndDecidesEachScanAlone) {
   EXPECT_EQ(counters.dropped_by_cause, causes);
   EXPECT_LT(rms(run.cloudDistances()), 1e-3);
   EXPECT_EQ(run.pipeline.waiting(), 0u);
+}
+
+/// The corrected points (x, y, z of every cloud, in order) of a recording with noisy odometry (tf at 50 Hz
+/// from 0 to 1.6 s, each sample's position off by 3 mm RMS, recorded `lag` s after its stamp) and 16
+/// scans at 40 Hz from 0.5 s, recorded at their end, with `fit_look_ahead` = look_ahead.
+std::vector<float> noisyRecording(double lag, double look_ahead) {
+  ros_adapter::DeskewParams params;
+  params.deskew.fit_look_ahead = look_ahead;
+  PipelineRun run(Drive(), params, "", ros_adapter::Waiting::kRecording);
+  std::mt19937 random(4);
+  std::normal_distribution<double> noise(0.0, 0.003);
+  struct Message {
+    double record_time;
+    bool is_tf;
+    geometry_msgs::TransformStamped tf;
+    double scan_start;
+  };
+  std::vector<Message> messages;
+  for (int k = 0; k <= 80; ++k) {
+    geometry_msgs::TransformStamped tf = run.drive.motionAt(k * kTfPeriod);
+    tf.transform.translation.x += noise(random);
+    tf.transform.translation.y += noise(random);
+    messages.push_back({k * kTfPeriod + lag, true, tf, 0.0});
+  }
+  for (int k = 0; k < 16; ++k)
+    messages.push_back({0.5 + 0.025 * (k + 1), false, {}, 0.5 + 0.025 * k});
+  std::stable_sort(messages.begin(), messages.end(),
+                   [](const Message& a, const Message& b) { return a.record_time < b.record_time; });
+  run.statics(0.0);
+  for (const Message& message : messages) {
+    if (message.is_tf)
+      run.pipeline.addTransforms({message.tf}, false, message.record_time);
+    else
+      run.pipeline.add(run.drive.scanAt(message.scan_start), message.record_time);
+    run.pipeline.expire(message.record_time);
+  }
+  run.pipeline.flush();
+  EXPECT_EQ(run.pipeline.counters().published, 16u) << lag << " " << look_ahead;
+  std::vector<float> points;
+  for (const PipelineResult& result : run.results) {
+    for (const auto& point : result.outputs.cloud->points)
+      points.insert(points.end(), {point.x, point.y, point.z});
+  }
+  return points;
+}
+
+// A recording with noisy odometry and a look-ahead of the twist fit (fit_look_ahead): each scan waits
+// until tf passes its end by the look-ahead, so its correction is the same to the bit whether tf was
+// recorded with the scans or 1.5 s after them (when a scan is served, tf may hold more or less after it);
+// the look-ahead changes the correction (the noisy fit reads the samples after the sweep).
+TEST(ScanPipeline, RecordingWithALookAheadCorrectsTheSameHoweverLateTfCame) {
+  const std::vector<float> on_time = noisyRecording(0.0, 0.2), late = noisyRecording(1.5, 0.2);
+  ASSERT_GT(on_time.size(), 3000u);
+  EXPECT_TRUE(on_time == late);
+  EXPECT_FALSE(on_time == noisyRecording(0.0, 0.0));
 }
 
 // A recording's scans whose tf never comes wait at most kRecordedTfWait of record time (tf that stopped:

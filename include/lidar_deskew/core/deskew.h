@@ -39,8 +39,13 @@ struct DeskewConfig {
   /// knots use the interpolated relative motion.
   /// 0 = exact mode: one motion query and one MRPT composition per beam (for verification).
   double knot_interval = 0.005;
+  /// [s] interpolation twist: the fit of noisy samples also reads the source's samples after the
+  /// sweep's end up to end + fit_look_ahead (TwistMotion::prepare). 0 = only up to the sample closing
+  /// the sweep. The result depends on the samples up to that time only.
+  double fit_look_ahead = 0.0;
 
-  /// Throws InvalidInput("knot_interval") when negative, not finite, or outside [1e-5, 1] s (0 = exact).
+  /// Throws InvalidInput("knot_interval") when negative, not finite, or outside [1e-5, 1] s (0 = exact);
+  /// InvalidInput("fit_look_ahead") when negative, not finite or over kFitHorizon (1 s).
   void validate() const;
 };
 

@@ -12,6 +12,10 @@
 
 namespace lidar_deskew::core {
 
+/// [s] The twist fit reads tf's samples at most this far before a sweep and after it (its look-ahead,
+/// DeskewConfig::fit_look_ahead, at most this).
+constexpr double kFitHorizon = 1.0;
+
 /// A twist in the body frame: (v, w) [m/s, rad/s], se(3) coordinates (translation part first).
 using Twist = Eigen::Matrix<double, 6, 1>;
 
@@ -27,36 +31,41 @@ Twist se3Bracket(const Twist& a, const Twist& b);
 ///
 /// - Each interval k between samples k and k+1 has a mean twist m_k = Log(T_k^-1 T_k+1) / h_k, and
 ///   keeps it: the fitted motion passes through every sample.
-/// - Only the samples up to the one that closes the sweep are read, never later ones: a sweep is
-///   corrected as soon as tf covers it, and what arrives after cannot change its correction.
+/// - The samples from kFitHorizon before the sweep to the one closing it are read and, with a look-ahead
+///   L, those up to end + L (at most kFitHorizon): the fit depends on them only, never on what the
+///   source holds after them (what arrived later).
 /// - The noise is estimated from the samples themselves: how far each interval's mean lies from the
 ///   best of the simplest local models (constant over two intervals, straight over three, a quartic
-///   over six), a median over the intervals of about a second before the sweep to its end. Exact
-///   samples give a noise of 0 (to a floor of 1e-5 m or 1e-6 rad per interval).
+///   over six), a median over the window's intervals. Exact samples give a noise of 0 (to a floor of
+///   1e-5 m or 1e-6 rad per interval).
 /// - With exact samples, each twist component changes over an interval at the slope of a line through
 ///   it and its neighbours (centred, else on one side: a kink at a sample beside it) where one explains
-///   them; at none across a step at a sample between two constant stretches; else at the slope of the
-///   parabola whose means over it and two neighbouring intervals are theirs, of the three such the
-///   one that curves least (a smooth twist changing between samples: followed to O(h^2), the pose to
-///   O(h^3); a step or kink beside it: the parabola on its other side), where five intervals around it
-///   are smooth (their means' fourth difference within 0.4 of their changes; else no slope).
-/// - With noisy samples (noise above 1 % of the component's typical size): one line through the means
-///   of the sweep's intervals and as many before, where its residuals stay below 0.7 of the noise's
-///   variance (fitNoisySweep); else each interval's twist constant (an arc through both samples).
+///   them; at none across a step at a sample between two constant stretches; else, where five intervals
+///   around it are smooth (their means' fourth difference within 0.4 of their changes; else no slope),
+///   at the slope and curvature of the quartic whose means over the five intervals centred on it are
+///   theirs (samples after the sweep: a look-ahead), else of the parabola over three of them that
+///   curves least (a smooth twist followed to O(h^3) or O(h^2), the pose one order better; a step or
+///   kink beside it: the parabola on its other side).
+/// - With noisy samples (noise above 1 % of the component's typical size): each noisy component a
+///   cubic smoothing spline through the window's means (smoothNoisy: x'' white noise, its intensity the
+///   smoothest within a 95 % likelihood-ratio interval of the most likely); the twist followed as a
+///   whole (each interval its own mean, an arc through both samples as tf's line passes through them)
+///   where a component changes between samples beyond the noise or the window holds fewer than 30
+///   intervals.
 /// - Over an interval the fitted twist is integrated to second order (two Magnus terms) such that its
 ///   end lies where the interval's mean twist takes it.
 ///
 /// Exact for constant linear and angular velocity (an arc; its twist is the same on every interval) and,
-/// with exact samples, for a twist that changes linearly or steps at a sample, and third-order accurate
-/// between samples for a twist that changes smoothly.
+/// with exact samples, for a twist that changes linearly or steps at a sample.
 class TwistMotion final : public MotionSource {
  public:
   /// Fits the motion of `raw` over [begin, end] from its samples (MotionSource::appendSampleTimes and
-  /// basePose at those times). Returns *this, or `raw` itself when raw reports no samples at or before
-  /// `begin` and at or after `end` that it can answer (a continuous source; tf beyond its newest
-  /// sample, extrapolated): then its own motion is used as it is. Throws what raw.basePose throws for
-  /// a time in [begin, end].
-  const MotionSource& prepare(const MotionSource& raw, TimeNs begin, TimeNs end);
+  /// basePose at those times), noisy ones also from its samples in (end, end + look_ahead] [ns] that
+  /// it answers (DeskewConfig::fit_look_ahead; 0 = none). Returns *this, or `raw` itself when raw
+  /// reports no samples at or before `begin` and at or after `end` that it can answer (a continuous
+  /// source; tf beyond its newest sample, extrapolated): then its own motion is used as it is. Throws
+  /// what raw.basePose throws for a time in [begin, end].
+  const MotionSource& prepare(const MotionSource& raw, TimeNs begin, TimeNs end, TimeNs look_ahead = 0);
 
   /// The fitted pose at `time` within the prepared span's sample intervals; throws MotionUnavailable
   /// elsewhere.
@@ -84,9 +93,10 @@ class TwistMotion final : public MotionSource {
     Eigen::Vector3d translation;
     Twist mean;  // of the interval to the sample at mean_until (-1: not computed yet)
     TimeNs mean_until;
-    /// estimateNoise()'s smallest residual of the interval starting here, per component; a function of
-    /// the samples from residual_from to residual_to (five intervals either side), kept with them.
-    Twist residual = Twist::Zero();
+    /// estimateNoise()'s smallest residual of each kind (step, chord, quartic) of the interval starting
+    /// here, per component; a function of the samples from residual_from to residual_to (five intervals
+    /// either side), kept with them.
+    std::array<Twist, 3> residual{Twist::Zero(), Twist::Zero(), Twist::Zero()};
     TimeNs residual_from = -1, residual_to = -1;
   };
   /// One fitted interval: starts at `time`, lasts `duration` [s]; the twist at t' [s] into it is
@@ -96,6 +106,8 @@ class TwistMotion final : public MotionSource {
     double duration;
     Twist start_twist;
     Twist slope;
+    Twist curvature = Twist::Zero();  // the twist's second-order term (t'^2), when `curved`
+    bool curved = false;
     Eigen::Matrix3d rotation;  // fitted pose at the piece's start
     Eigen::Vector3d translation;
     /// Omega(t') = start t' + slope t'^2 / 2 + t'^3 / 12 [start, slope]: the motion t' [s] into the piece.
@@ -106,21 +118,31 @@ class TwistMotion final : public MotionSource {
   std::deque<Sample>::iterator cachedAt(TimeNs time);
   /// The k-th sample of the window prepare() fits over (kept in cache_).
   Sample& sample(std::size_t k) const { return *samples_[k]; }
-  bool gatherSamples(const MotionSource& raw, TimeNs begin, TimeNs end);
+  bool gatherSamples(const MotionSource& raw, TimeNs begin, TimeNs end, TimeNs look_ahead);
   void estimateNoise();
   /// Fitted (mean twist, slope) of interval j, component c.
-  void fitInterval(std::size_t j, int c, double& mean, double& slope) const;
-  /// For each noisy component: the line through the means of the sweep's intervals [first, last) and as
-  /// many before, if it explains them within the noise (sweep_line_).
-  void fitNoisySweep(std::size_t first, std::size_t last);
-  struct SweepLine {
-    bool valid = false;
-    double centre = 0.0, value = 0.0, slope = 0.0;  // value at centre [s from the first sample]
-  };
-  std::array<SweepLine, 6> sweep_line_{};
+  void fitInterval(std::size_t j, int c, double& mean, double& slope, double& curvature) const;
+  /// For each noisy component: the cubic smoothing spline through the window's means, its weight of
+  /// the largest likelihood or the smoothest within kLikelihoodMargin of it; kept in smoothed_ for the
+  /// sweep's intervals [first, last).
+  void smoothNoisy(std::size_t first, std::size_t last);
+  /// The filter over component c with the prior's ratio q tau^3 / sigma^2; the log likelihood (sigma^2
+  /// at its best). With `keep`, smoothed_[c] for intervals [first, last).
+  double smoothComponent(int c, double ratio, std::size_t first, std::size_t last, bool keep);
+  std::array<std::vector<Eigen::Vector2d>, 6> smoothed_;  // per component: (twist, rate) at centres
+  std::size_t smoothed_first_ = 0;
+  double typical_ = 0.0;                        // [s] the window's median interval
+  std::array<double, 6> diffuse_scale_{};       // smoothComponent()'s prior size, per component
+  Twist chosen_ratio_ = Twist::Zero();          // the ratios chosen in the last prepare()
+  bool followed_ = false;                       // the noisy twist followed (each interval its mean)
+  double innovation_square_ = 0.0;     // smoothComponent()'s mean squared standardised innovation
+  std::vector<double> standardised_;  // and its standardised innovations
+  std::vector<std::pair<Eigen::Vector2d, Eigen::Matrix2d>> filtered_, predicted_;  // scratch
+  std::vector<std::pair<double, double>> likelihoods_;                            // scratch: (ratio, log L)
 
   const MotionSource* raw_ = nullptr;
   std::vector<Sample*> samples_;  // the window's samples, in cache_ (stable until the next prepare())
+  std::size_t closing_ = 0;       // samples_[closing_] closes the sweep; later ones: the look-ahead's
   std::deque<Sample> cache_;      // the source's answers at its sample times, sorted
   const MotionSource* cache_source_ = nullptr;
   TimeNs cache_begin_ = 0;
@@ -139,7 +161,7 @@ class TwistMotion final : public MotionSource {
   double fastest_change_ = 0.0;  // [m/s^2] largest |slope| of a piece, its angular part times 10 m
   bool screws_ = false;
   std::vector<double> scratch_;  // estimateNoise()'s buffer for medians
-  std::vector<double> minima_;   // estimateNoise()'s smallest residual per interval, a column per component
+  std::vector<double> minima_;   // estimateNoise()'s smallest residuals per interval, a column per kind and component
   std::vector<Twist> step_, chord_, curve_;  // estimateNoise()'s residuals per stencil
   std::vector<TimeNs> doubled_centres_;       // estimateNoise()'s interval mid times [ns] times two
 };

@@ -77,13 +77,15 @@ enum class PipelineEvent {
 
 /// How long a scan waits for tf (docs/DESIGN.md §2).
 enum class Waiting {
-  /// Live: until tf covers the sweep or tf_timeout has passed on the owner's clock; scans are served in
+  /// Live: until tf covers the sweep, and passes its end by fit_look_ahead with interpolation twist, or
+  /// tf_timeout has passed on the owner's clock (then served with what there is); scans are served in
   /// arrival order (a waiting scan holds back those behind it); at most queue_size wait.
   kTimeout,
   /// Offline (a recording, fed in record order): until tf's newest stamp on the fixed -> base chain
-  /// passes the sweep's last beam. Then it is served, or failed alone with its cause when tf does not
-  /// cover it (tf no longer holds its start, tf began after it); a scan does not hold back those
-  /// behind it. When the scans' stamps went back by more than 1 s (a recording whose clock restarts)
+  /// passes the sweep's last beam, by fit_look_ahead with interpolation twist (served with what there is
+  /// when its wait is over, and at flush()). Then it is served, or failed alone with its cause when tf
+  /// does not cover it (tf no longer holds its start, tf began after it); a scan does not hold back
+  /// those behind it. When the scans' stamps went back by more than 1 s (a recording whose clock restarts)
   /// and tf has not followed yet, the scans of the new time line more than 1 s behind tf's newest wait
   /// for tf's jump (it would serve them from the old time line), and all of them wait on across it.
   /// Neither tf_timeout nor queue_size drops a scan tf will cover: a scan still waiting after
@@ -209,6 +211,11 @@ class SweepPipeline {
   std::string causeNotCovered(const Pending& pending) const;
   /// tf ends inside the sweep, at most max_extrapolation before its last beam.
   bool extrapolatable(const Pending& pending) const;
+  /// With a look-ahead: tf covers the sweep (and its mount) but stopped short of the look-ahead; served
+  /// with what there is when its wait is over (tf_timeout live).
+  bool coveredWithoutLookAhead(const Pending& pending) const;
+  /// [ns] fit_look_ahead with interpolation twist, else 0.
+  core::TimeNs lookAheadNs() const;
   void correct(const Pending& pending, bool extrapolate, double now);
   /// Drops the sweep or passes it through (on_tf_failure), counted under `cause` (a short fixed text),
   /// reported with `reason` (its details).

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "lidar_deskew/sim/cloud_scenario.h"
+#include "lidar_deskew/sim/scenario.h"
 
 namespace lidar_deskew::sim {
 
@@ -84,16 +85,27 @@ sensor_msgs::PointCloud2 toPointCloud2(const SimulatedCloud& sweep, CloudConvent
 
 struct CloudBagOptions {
   CloudConvention convention = CloudConvention::kOuster;
-  bool noise = false;                              ///< add the LIDAR's Gaussian range noise
-  unsigned seed = 1;                               ///< of the noise
-  double tf_rate = 50.0;                           ///< [Hz] of /tf fixed -> base
-  double latency = 0.005;                          ///< [s] record time = last point's time + latency
+  bool noise = false;      ///< add the LIDAR's Gaussian range noise
+  unsigned seed = 1;       ///< of the noise
+  double tf_rate = 50.0;   ///< [Hz] of /tf fixed -> base
+  double latency = 0.005;  ///< [s] record time = last point's time + latency
+  double tf_margin = 0.1;  ///< [s] /tf from this before the first sweep to this after the last
   core::TimeNs epoch = 1'700'000'000'000'000'000;  ///< [ns] bag time of t = 0
   double duration = 0.0;                           ///< [s] > 0: instead of the scenario's
   std::string fixed_frame = "odom";
   std::string base_frame = "base_link";
   std::string lidar_frame = "lidar";
   std::string cloud_topic = "/points";
+  /// The odometry as a wheeled robot produces it (none of it by default: /tf is the true pose), as
+  /// SimBagOptions' fields of the same names (sim::recordOdometry): relative noise per 20 ms step and
+  /// its seed, a yaw scale, and the samples' timing (jitter, irregular rate, encoder ticks, late and
+  /// burst recording), in the truth file. Wheels and encoders measure the planar motion only: noise,
+  /// scale and ticks act on x, y and yaw, while z, roll and pitch (rough ground) stay the truth at the
+  /// sample's time, as from an IMU and a known ground (they do not drift).
+  double odom_noise = 0.0;
+  unsigned odom_noise_seed = 1;
+  double odom_yaw_scale = 1.0;
+  OdometryTiming odom_timing;
 };
 
 /// `pose` as the tf transform parent -> child at `time` [ns].
@@ -103,10 +115,12 @@ geometry_msgs::TransformStamped stamped(const std::string& parent, const std::st
 /// Simulates `scenario` and writes `bag_path` with
 /// - /points (sensor_msgs/PointCloud2) in the convention's layout (toPointCloud2), one per sweep,
 ///   recorded at its last point's time + latency;
-/// - /tf (tf2_msgs/TFMessage): fixed -> base at tf_rate, the true 3D pose (perfect odometry), from
-///   0.1 s before the first sweep to 0.1 s after the last sweep's end;
+/// - /tf (tf2_msgs/TFMessage): fixed -> base at tf_rate, the true 3D pose (perfect odometry) or the
+///   odometry the options ask for, from 0.1 s before the first sweep to 0.1 s after the last sweep's
+///   end (jitter further out), recorded in time order with the clouds;
 /// - /tf_static: base -> lidar (the mount), once, latched (writeTfStatic in sim_bag.h);
-/// in time order, and the matching truth file at `truth_path`. Throws on I/O errors.
+/// in time order, and the matching truth file at `truth_path`. Throws on I/O errors, and
+/// std::invalid_argument for a bad tf_rate or odometry option.
 void writeCloudBag(const CloudScenario& scenario, const CloudBagOptions& options, const std::string& bag_path,
                    const std::string& truth_path);
 

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "lidar_deskew/core/types.h"
+#include "lidar_deskew/sim/scenario.h"
 #include "lidar_deskew/sim/sim3d.h"
 
 namespace lidar_deskew::sim {
@@ -65,6 +66,11 @@ struct CloudTruth {
   std::vector<MotionPiece> pieces;
   std::optional<RoughGround> rough;
   std::vector<double> sweep_start_times;  ///< [s] column 0's time of each sweep, from the epoch
+  /// The odometry on /tf (CloudBagOptions; the motion above stays the true one): as Truth's fields.
+  double odom_noise = 0.0;
+  unsigned odom_noise_seed = 0;
+  double odom_yaw_scale = 1.0;
+  OdometryTiming odom_timing;
 
   std::shared_ptr<const Trajectory3> trajectory() const;
   /// True sensor pose in the world at bag time `time` [ns] (base(t) (+) mount).
@@ -74,7 +80,8 @@ struct CloudTruth {
 };
 
 /// Writes / reads the cloud truth file (a line-based text format, full double precision; the mount
-/// as position and the 9 entries of its rotation matrix). read throws std::runtime_error naming the
+/// as position and the 9 entries of its rotation matrix; the odometry lines as the planar truth's
+/// (writeTruth), only when the odometry is not the truth). read throws std::runtime_error naming the
 /// file and line on malformed input.
 void writeCloudTruth(const CloudTruth& truth, const std::string& path);
 CloudTruth readCloudTruth(const std::string& path);

@@ -73,8 +73,6 @@ struct MountChange {
   Pose2 mount;
 };
 
-/// What the metrics need to know about a simulated bag: the world, the true motion, the mount, and
-/// how the scans' timing was faulted.
 /// How a robot's odometry samples come (sim_bag's /tf odom -> base_link and /odom), beyond its noise:
 /// the defaults are the ideal 50 Hz grid, stamped at the true time and recorded at once.
 struct OdometryTiming {
@@ -102,6 +100,34 @@ struct OdometryTiming {
   void validate() const;
 };
 
+/// One odometry sample as a robot's driver publishes it.
+struct OdometrySample {
+  double time = 0.0;    ///< [s] the true time its pose is of
+  double stamp = 0.0;   ///< [s] as the message says: time + the jitter
+  double record = 0.0;  ///< [s] when recorded: stamp + late, or its burst's last sample's
+  Pose2 pose;           ///< what the odometry reports (x, y, yaw)
+  /// The twist it reports: the true one x the step's factors (NoisyOdometry), or with encoder ticks the
+  /// interval's ticks over its duration.
+  double speed = 0.0;     ///< [m/s]
+  double yaw_rate = 0.0;  ///< [rad/s]
+};
+
+/// What a wheeled robot's odometry records of the planar motion `truth` (both bag writers' /tf):
+/// - times: the grid begin + k / rate [s], k = 0 .. last (the caller's rounding of its span; with
+///   timing.jitter, ceil(jitter rate) more at each end), or with timing.rate_min > 0 random intervals
+///   from begin - jitter until end + jitter is passed (OdometryTiming);
+/// - poses: NoisyOdometry(truth, first time, max(end, last time), noise, seed, yaw_scale) at the true
+///   times; with timing.tick integrated from whole encoder ticks along it (OdometryTiming::tick);
+/// - stamps jittered, record times late and in bursts (OdometryTiming).
+/// Timing draws come from a generator seeded with (seed, 0x0d0e7), apart from the noise's. Returned in
+/// the order a recorder writes them: by record time, ties in time order. Throws std::invalid_argument
+/// for an invalid timing, noise or yaw_scale.
+std::vector<OdometrySample> recordOdometry(const PiecewiseTrajectory& truth, double begin, long last,
+                                           double end, double rate, double noise, unsigned seed,
+                                           double yaw_scale, const OdometryTiming& timing);
+
+/// What the metrics need to know about a simulated bag: the world, the true motion, the mount, and
+/// how the scans' timing was faulted.
 struct Truth {
   std::string scenario;
   core::TimeNs epoch = 0;    ///< [ns] bag time of t = 0
