@@ -406,7 +406,7 @@ void TwistMotion::estimateNoise() {
   // kind), and the noise the least of the three. A kind that holds the true twist on most intervals
   // gives the noise; one that does not gives more (a turn rate stepping every other sample holds only
   // the steps, with quantised or jittered samples). Taking the least errs towards less noise, which
-  // smooths less: towards tf's line, never away from it. (The smallest of all eleven residuals, one
+  // smooths less: towards tf's line. (The smallest of all eleven residuals, one
   // median, took a stepping turn rate for noise 8 times its own: only one of the eleven held it.)
   const std::size_t scored = count - 10;
   minima_.resize(18 * scored);
@@ -418,9 +418,12 @@ void TwistMotion::estimateNoise() {
     }
   }
   const std::size_t middle = scored / 2;
+  // Quartics first, which hold a smooth motion: once a kind puts the noise below what is smoothed
+  // (kNoisyFloor floors), the component is exact whatever the others say, and they are not computed.
   for (std::size_t c = 0; c < 6; ++c) {
+    const double exact_below = kNoisyFloor * floor_[static_cast<int>(c)] * kLeastOfKinds;
     double least = INFINITY;
-    for (std::size_t kind = 0; kind < 3; ++kind)
+    for (std::size_t kind = 3; kind-- > 0 && !(least <= exact_below);)
       least = std::min(least, kthSmallest(&minima_[(kind * 6 + c) * scored], scored, middle, scratch_) /
                                   kResidualMedians[kind]);
     noise_[static_cast<int>(c)] = least / kLeastOfKinds;
@@ -429,7 +432,7 @@ void TwistMotion::estimateNoise() {
   // means' magnitudes). Below, what the simple models leave is taken for the motion's own curvature.
   magnitudes_.resize(count);
   for (std::size_t c = 0; c < 6; ++c) {
-    if (!(noise_[static_cast<int>(c)] > floor_[static_cast<int>(c)]))
+    if (!(noise_[static_cast<int>(c)] > kNoisyFloor * floor_[static_cast<int>(c)]))
       continue;  // exact: its typical size is not needed
     for (std::size_t k = 0; k < count; ++k)
       magnitudes_[k] = std::abs(means_[k][static_cast<int>(c)]);
