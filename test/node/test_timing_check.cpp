@@ -37,9 +37,14 @@ TEST(TimingCheck, ReportsWhetherTheTimingFits) {
   double odometry_yaw_scale = 1.0;  // tf's odometry turns this much x the truth
   ros::NodeHandle("~").getParam("odometry_yaw_scale", odometry_yaw_scale);
   const bool odometry_over = odometry_yaw_scale != 1.0;
+  // Up to 240 s of driving, as fast as the node keeps up; stop once the verdict is in (the check runs
+  // within 5 % of the node's CPU, so how many scans it takes depends on what a scan costs).
+  // Wrong odometry: up to 480 s (its verdict came after 147-214 s of driving in 3 runs, and after
+  // over 300 s once), the odometry covering all of it.
+  const double longest_drive = odometry_over ? 480.0 : 240.0;
   LiveRig rig(sim::LidarModel::ild26tri(), "", drive(turning));
   if (odometry_over)
-    rig.useOdometryYawScale(odometry_yaw_scale);
+    rig.useOdometryYawScale(odometry_yaw_scale, longest_drive + 1.0);
   ASSERT_TRUE(rig.connect());
   const double period = 1.0 / rig.model.rate;
   const double sweep = period * (rig.model.beams - 1) / rig.model.beams;
@@ -48,10 +53,7 @@ TEST(TimingCheck, ReportsWhetherTheTimingFits) {
   std::string message;
   const ros::WallTime started = ros::WallTime::now();
   std::size_t published = 0;
-  // Up to 240 s of driving, as fast as the node keeps up; stop once the verdict is in (the check runs
-  // within 5 % of the node's CPU, so how many scans it takes depends on what a scan costs).
-  // Wrong odometry: up to 480 s (its verdict came after 147-214 s of driving in 3 runs).
-  for (double t = 0.1; t < (odometry_over ? 480.0 : 240.0); t += period) {
+  for (double t = 0.1; t < longest_drive; t += period) {
     // Ahead: covers the sweep however the node reads the stamp. Configured end: up to the sweep's end
     // only, as a robot's tf comes; the check's "start" alternative needs the next scan's tf.
     rig.publishTfUntil(configured_end ? t + period + 0.02 : t + 2.0 * period + 0.02);
