@@ -686,17 +686,14 @@ void TwistMotion::smoothNoisy(std::size_t first, std::size_t last) {
     // makes it at worst, and the innovations white at lags 2-4. Else the component changes in a way no
     // spline holds (a turn rate stepping every other sample, its stamps jittered: mean square 3.5
     // against 2.9, Ljung-Box 150-200 against 30.7; noise alone: under 20), and the twist is followed.
-    smoothComponent(component, chosen, first, last, false);
+    // The same pass keeps the smoothed sweep, used unless the twist is followed.
+    smoothComponent(component, chosen, first, last, true);
     const double dof = static_cast<double>(means_.size() - kDiffuseIntervals);
     if (innovation_square_ > lineTestLimit(dof) / dof / (kLeastOfKindsAtWorst * kLeastOfKindsAtWorst) ||
         ljungBox(standardised_) > kWhitenessLimit)
       chosen = kMaxRatio;
     chosen_ratio_[component] = chosen;
     followed_ = chosen >= kFollowRatio;
-  }
-  for (std::size_t c = 0; c < 6 && !followed_; ++c) {
-    if (noisy_[c])
-      smoothComponent(static_cast<int>(c), chosen_ratio_[static_cast<int>(c)], first, last, true);
   }
 }
 
