@@ -33,9 +33,13 @@ PlacedScan::PlacedScan(TimeNs time, const Eigen::Vector2d& origin, double bearin
   for (std::size_t b = 0; b < bins; ++b)
     bin_begin_[b + 1] += bin_begin_[b];
   by_bin_.resize(points_.size());
+  binned_.resize(points_.size());
   std::vector<std::uint32_t> fill(bin_begin_.begin(), bin_begin_.end() - 1);
-  for (std::size_t i = 0; i < points_.size(); ++i)
-    by_bin_[fill[bin_of[i]]++] = static_cast<std::uint32_t>(i);
+  for (std::size_t i = 0; i < points_.size(); ++i) {
+    const std::uint32_t k = fill[bin_of[i]]++;
+    by_bin_[k] = static_cast<std::uint32_t>(i);
+    binned_[k] = points_[i];
+  }
 }
 
 std::size_t PlacedScan::binOf(const Eigen::Vector2d& point) const {
@@ -59,20 +63,38 @@ bool PlacedScan::contourHit(const Eigen::Vector2d& query, double radius, Contour
   if (points_.empty())
     return false;
   const auto bins = static_cast<std::ptrdiff_t>(bin_begin_.size() - 1);
-  std::ptrdiff_t bin = ((static_cast<std::ptrdiff_t>(binOf(query)) - kBinReach) % bins + bins) % bins;
+  std::ptrdiff_t first = static_cast<std::ptrdiff_t>(binOf(query)) - kBinReach;  // binOf() < bins
+  while (first < 0)
+    first += bins;
   double best = radius * radius;
-  std::ptrdiff_t found = -1;
-  for (int step = -kBinReach; step <= kBinReach; ++step, bin = bin + 1 == bins ? 0 : bin + 1) {
-    for (std::uint32_t k = bin_begin_[bin]; k < bin_begin_[bin + 1]; ++k) {
-      const double squared = (points_[by_bin_[k]] - query).squaredNorm();
+  std::ptrdiff_t found = -1;  // in bin order; the last of equally near points in the bins' order
+  // The bins searched are consecutive, so their points are one run of binned_ (two where they wrap).
+  const auto search = [&](std::uint32_t begin, std::uint32_t end) {
+    for (std::uint32_t k = begin; k < end; ++k) {
+      const double dx = binned_[k].x() - query.x(), dy = binned_[k].y() - query.y();
+      const double squared = dx * dx + dy * dy;
       if (squared <= best) {
         best = squared;
-        found = by_bin_[k];
+        found = k;
       }
     }
+  };
+  constexpr std::ptrdiff_t kSearched = 2 * kBinReach + 1;
+  if (bins >= kSearched) {
+    const std::ptrdiff_t end = first + kSearched;
+    if (end <= bins) {
+      search(bin_begin_[first], bin_begin_[end]);
+    } else {
+      search(bin_begin_[first], bin_begin_[bins]);
+      search(bin_begin_[0], bin_begin_[end - bins]);
+    }
+  } else {  // fewer bins than searched: some are searched twice, in the same order as ever
+    for (std::ptrdiff_t step = 0, bin = first; step < kSearched; ++step, bin = bin + 1 == bins ? 0 : bin + 1)
+      search(bin_begin_[bin], bin_begin_[bin + 1]);
   }
   if (found < 0)
     return false;
+  found = by_bin_[found];
   const Eigen::Vector2d& point = points_[found];
   hit.point = point;
   hit.nearest = std::sqrt(best);
