@@ -360,11 +360,25 @@ void SweepPipeline<Processor>::add(const typename Message::ConstPtr& message, do
     ++counters_.dropped_queue;
     ++counters_.dropped_by_cause[kCauseQueue];
     report_(PipelineEvent::kQueueFull, "more than " + std::to_string(params_.queue_size) + " " +
-                                           std::string(Processor::kNoun) +
-                                           "s wait for tf; dropping the oldest");
+                                           std::string(Processor::kNoun) + "s wait for tf; dropping the oldest" +
+                                           queueAdvice());
     pending_.pop_front();
   }
   serveReady(now);
+}
+
+template <class Processor>
+std::string SweepPipeline<Processor>::queueAdvice() const {
+  // Every scan waits at least the look-ahead: the queue must hold the scans that arrive meanwhile, plus
+  // the one arriving and one for tf's sample period.
+  const double look_ahead = core::nsToSeconds(lookAheadNs());
+  const double span = pending_.back().arrival - pending_.front().arrival;
+  if (!(look_ahead > 0.0) || pending_.size() < 2 || !(span > 0.0) || span >= look_ahead)
+    return "";
+  const double rate = static_cast<double>(pending_.size() - 1) / span;
+  const double needed = std::ceil(rate * look_ahead - 1e-3) + 2.0;  // (the rate is measured: not 40.0001 Hz)
+  return ": each waits fit_look_ahead (" + formatNumber(look_ahead) + " s), at " + formatNumber(rate) +
+         " Hz queue_size must be " + formatNumber(needed) + " or more";
 }
 
 template <class Processor>

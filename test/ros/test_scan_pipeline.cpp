@@ -2,6 +2,7 @@
 // messages, the simulator's truth. The robot drives a 6 m/s, 5 rad/s arc; tf at 50 Hz; UTM-30LX scans.
 #include <gtest/gtest.h>
 
+#include <memory>
 #include <random>
 
 #include "lidar_deskew/ros/scan_pipeline.h"
@@ -210,6 +211,35 @@ TEST(ScanPipeline, LiveScanWaitsForTheLookAheadThenIsServedWithWhatThereIs) {
   const std::vector<double> distances = run.cloudDistances();
   ASSERT_FALSE(distances.empty());
   EXPECT_LT(*std::max_element(distances.begin(), distances.end()), 1e-3);
+}
+
+// Live, every scan waits the look-ahead: a queue too short for it drops scans, and the warning names the
+// queue_size that holds them at the rate they come (40 Hz x 0.5 s and two more: 22), which drops none.
+TEST(ScanPipeline, QueueTooShortForTheLookAheadNamesTheQueueSizeThatHoldsIt) {
+  const auto drive = [](int queue_size) {
+    ros_adapter::DeskewParams params;
+    params.deskew.interpolation = core::Interpolation::kTwist;
+    params.deskew.fit_look_ahead = 0.5;
+    params.tf_timeout = 1.0;
+    params.queue_size = queue_size;
+    auto run = std::make_unique<PipelineRun>(Drive(), params);
+    run->statics(0.0);
+    for (double t = 0.0; t < 2.0; t += 1.0 / run->drive.model.rate)
+      run->scan(t);
+    return run;
+  };
+  const auto short_queue = drive(10);
+  EXPECT_GT(short_queue->pipeline.counters().dropped_queue, 20u);
+  const auto warning = std::find_if(short_queue->events.begin(), short_queue->events.end(),
+                                    [](const auto& e) { return e.first == PipelineEvent::kQueueFull; });
+  ASSERT_NE(warning, short_queue->events.end());
+  EXPECT_NE(warning->second.find("each waits fit_look_ahead (0.5 s), at 40 Hz queue_size must be 22 or more"),
+            std::string::npos)
+      << warning->second;
+  const auto advised = drive(22);
+  EXPECT_EQ(advised->pipeline.counters().dropped_queue, 0u);
+  EXPECT_GT(advised->results.size(), 55u);  // 2 s at 40 Hz, less the last 0.5 s still waiting
+  EXPECT_FALSE(advised->said(PipelineEvent::kQueueFull));
 }
 
 // Waiting is measured on the owner's clock: a scan waits up to tf_timeout for tf, then fails.

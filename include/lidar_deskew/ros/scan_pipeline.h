@@ -214,6 +214,9 @@ class SweepPipeline {
   /// With a look-ahead: tf covers the sweep (and its mount) but stopped short of the look-ahead; served
   /// with what there is when its wait is over (tf_timeout live).
   bool coveredWithoutLookAhead(const Pending& pending) const;
+  /// For a queue-full warning: the queue_size that holds the scans waiting for the look-ahead at the rate
+  /// they arrive, when the queue holds fewer ("" otherwise).
+  std::string queueAdvice() const;
   /// [ns] fit_look_ahead with interpolation twist, else 0.
   core::TimeNs lookAheadNs() const;
   void correct(const Pending& pending, bool extrapolate, double now);
