@@ -330,9 +330,9 @@ void TwistMotion::estimateNoise() {
   const std::size_t count = means_.size();
   noise_.setZero();
   // The floor: twist differences that move a point by less than 0.01 mm over a typical interval.
-  const double typical = kthSmallest(durations_.data(), count, count / 2, scratch_);
-  floor_.head<3>().setConstant(kFloorDisplacement / typical);
-  floor_.tail<3>().setConstant(kFloorAngle / typical);
+  typical_ = kthSmallest(durations_.data(), count, count / 2, scratch_);
+  floor_.head<3>().setConstant(kFloorDisplacement / typical_);
+  floor_.tail<3>().setConstant(kFloorAngle / typical_);
   noisy_.fill(false);
   if (count < kMinNoiseIntervals + 10)
     return;
@@ -664,7 +664,6 @@ void TwistMotion::smoothNoisy(std::size_t first, std::size_t last) {
   chosen_ratio_.setZero();
   if (followed_)
     return;
-  typical_ = kthSmallest(durations_.data(), durations_.size(), durations_.size() / 2, scratch_);
   for (std::size_t c = 0; c < 6 && !followed_; ++c) {
     if (!noisy_[c])
       continue;
