@@ -262,43 +262,50 @@ bool TwistMotion::gatherSamples(const MotionSource& raw, TimeNs begin, TimeNs en
     cache_.clear();
   cache_begin_ = begin;
   cache_source_ = &raw;
-  // The queries walk outwards from the sweep's first sample, so one iterator walks the cache along
-  // (`at`: the first cached sample at or after the time asked) rather than a search per sample.
-  auto at = cachedAt(times_[first]);
-  const auto seek = [&](TimeNs time) {
-    while (at != cache_.begin() && std::prev(at)->time >= time)
-      --at;
-    while (at != cache_.end() && at->time < time)
-      ++at;
-  };
-  const auto query = [&](std::size_t i) {
-    const TimeNs time = times_[i];
-    seek(time);
-    if (at == cache_.end() || at->time != time) {
-      mrpt::poses::CPose3D pose;
-      try {
-        pose = raw.basePose(time);
-      } catch (const MotionUnavailable&) {
-        return false;
-      }
-      at = cache_.insert(at, {time, detail::rotationOf(pose), detail::translationOf(pose), Twist::Zero(), -1});
+  // The queries walk outwards from the sweep's first sample, and the cache along with them by index
+  // (most times are cached: only the new ones are asked and inserted where they sort).
+  const auto ask = [&](std::size_t i, std::size_t position) {
+    mrpt::poses::CPose3D pose;
+    try {
+      pose = raw.basePose(times_[i]);
+    } catch (const MotionUnavailable&) {
+      return false;
     }
+    cache_.insert(cache_.begin() + static_cast<std::ptrdiff_t>(position),
+                  {times_[i], detail::rotationOf(pose), detail::translationOf(pose), Twist::Zero(), -1});
     return true;
   };
   // From the sweep's first sample outwards, stopping where the source no longer answers (a chain's
-  // links end at different times): times_[low, high) are answered.
+  // links end at different times): times_[low, high) are answered. `cached`: the cache's samples from
+  // there on are at or after the last time answered (before it going down, after it going up).
+  std::size_t cached = static_cast<std::size_t>(cachedAt(times_[first]) - cache_.begin());
+  while (cached < cache_.size() && cache_[cached].time == times_[first])
+    ++cached;  // just after times_[first] when it is cached
   std::size_t low = first + 1;
   while (low > 0) {
-    if (!query(low - 1)) {
+    const TimeNs time = times_[low - 1];
+    while (cached > 0 && cache_[cached - 1].time > time)
+      --cached;  // no longer a sample time of the source (skipped, as before)
+    if (cached > 0 && cache_[cached - 1].time == time) {
+      --cached;
+    } else if (!ask(low - 1, cached)) {
       if (low - 1 == first)
         return false;
       break;
     }
     --low;
   }
+  cached = static_cast<std::size_t>(cachedAt(times_[first] + 1) - cache_.begin());
   std::size_t high = first + 1;
   while (high < times_.size()) {
-    if (!query(high)) {
+    const TimeNs time = times_[high];
+    while (cached < cache_.size() && cache_[cached].time < time)
+      ++cached;
+    if (cached < cache_.size() && cache_[cached].time == time) {
+      ++cached;
+    } else if (ask(high, cached)) {
+      ++cached;
+    } else {
       if (high <= last)
         return false;
       break;
@@ -309,11 +316,11 @@ bool TwistMotion::gatherSamples(const MotionSource& raw, TimeNs begin, TimeNs en
   // more insertions until the next prepare(): the pointers stay valid).
   cache_.erase(cache_.begin(), cachedAt(times_[low]));
   samples_.clear();
-  auto cached = cache_.begin();
+  auto kept = cache_.begin();
   for (std::size_t i = low; i < high; ++i) {
-    while (cached->time < times_[i])
-      ++cached;
-    samples_.push_back(&*cached);
+    while (kept->time < times_[i])
+      ++kept;
+    samples_.push_back(&*kept);
   }
   closing_ = last - low;
   return samples_.size() >= 2;
@@ -323,9 +330,9 @@ void TwistMotion::estimateNoise() {
   const std::size_t count = means_.size();
   noise_.setZero();
   // The floor: twist differences that move a point by less than 0.01 mm over a typical interval.
-  const double typical = kthSmallest(durations_.data(), count, count / 2, scratch_);
-  floor_.head<3>().setConstant(kFloorDisplacement / typical);
-  floor_.tail<3>().setConstant(kFloorAngle / typical);
+  typical_ = kthSmallest(durations_.data(), count, count / 2, scratch_);
+  floor_.head<3>().setConstant(kFloorDisplacement / typical_);
+  floor_.tail<3>().setConstant(kFloorAngle / typical_);
   noisy_.fill(false);
   if (count < kMinNoiseIntervals + 10)
     return;
@@ -657,7 +664,6 @@ void TwistMotion::smoothNoisy(std::size_t first, std::size_t last) {
   chosen_ratio_.setZero();
   if (followed_)
     return;
-  typical_ = kthSmallest(durations_.data(), durations_.size(), durations_.size() / 2, scratch_);
   for (std::size_t c = 0; c < 6 && !followed_; ++c) {
     if (!noisy_[c])
       continue;

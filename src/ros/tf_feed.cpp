@@ -433,6 +433,10 @@ Coverage TfFeed::coverage(core::TimeNs first, core::TimeNs last, std::string* wh
                  " (" + std::to_string(core::nsToSeconds(newest)) +
                  "): a stamp tf cannot cover (uninitialised, or on another clock)");
   }
+  // One dynamic link: its samples kept answer without tf2 where they hold the times.
+  const OneLinkChain& chain = motion_.chain();
+  if (chain.answers(last) && chain.answers(first))
+    return Coverage::kCovered;
   try {
     std::string error;
     return buffer_->canTransform(fixed_frame_, base_frame_, toRosTime(last), &error) &&
@@ -552,6 +556,10 @@ std::string TfFeed::whyNoChain() const {
 }
 
 core::TimeNs TfFeed::newestChainTime() const {
+  if (const core::TimeNs newest = motion_.chain().newest(); newest != 0)
+    return newest;  // one dynamic link: its newest sample, as tf2's walk from the base finds it
+  if (!buffer_->_frameExists(fixed_frame_) || !buffer_->_frameExists(base_frame_))
+    return 0;  // what tf2's lookup would throw for, without the cost of a throw
   try {
     return toNs(buffer_->lookupTransform(fixed_frame_, base_frame_, ros::Time(0)).header.stamp);
   } catch (const std::exception&) {  // tf2's, or ros::Time's

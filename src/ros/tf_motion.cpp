@@ -95,7 +95,7 @@ void OneLinkChain::add(const std::string& child, const std::string& parent, core
 }
 
 bool OneLinkChain::answer(core::TimeNs time, geometry_msgs::Transform& out) const {
-  if (!valid_ || samples_.empty() || time < samples_.front().stamp || time > samples_.back().stamp)
+  if (!answers(time))
     return false;
   // tf2's TimeCache::findClosest and getData: its newest and earliest samples as they are, else the
   // pair around `time` (the older one at or before it) interpolated, even at a sample's own stamp.

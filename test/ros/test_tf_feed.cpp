@@ -41,6 +41,21 @@ core::TimeNs at(double t) {
 
 const Drive kDrive;
 
+/// The feed's newest chain time and its coverage of `time` [ns] (from the link's samples where they
+/// hold it) against tf2's own: its latest common time (a lookup at 0) and canTransform.
+void expectChainTimesAsTf2(const TfFeed& feed, core::TimeNs time, const std::string& what) {
+  core::TimeNs newest = 0;
+  try {
+    newest = ros_adapter::toNs(
+        feed.buffer().lookupTransform(feed.fixedFrame(), feed.baseFrame(), ros::Time(0)).header.stamp);
+  } catch (const tf2::TransformException&) {
+  }
+  EXPECT_EQ(feed.newestChainTime(), newest) << what;
+  EXPECT_EQ(feed.covers(time, time),
+            feed.buffer().canTransform(feed.fixedFrame(), feed.baseFrame(), ros_adapter::toRosTime(time)))
+      << what << " at " << time;
+}
+
 // Long recordings (deskew_bag reads the whole bag through one feed; the evaluation keeps a bag's
 // whole tf): sample times are kept for the cache time, not a count, so knots and gaps are seen from
 // the first second on. 100 s of 50 Hz tf is 5000 samples.
@@ -215,6 +230,9 @@ TEST(TfFeed, TimeJumpClearsTheCacheAndKeepsTheMount) {
   EXPECT_FALSE(fed.feed.covers(kDrive.epoch + core::secondsToNs(3.0), kDrive.epoch + core::secondsToNs(3.0)));
   // The three held transforms start the new time line.
   EXPECT_TRUE(fed.feed.covers(at(0.0), at(0.04)));
+  EXPECT_EQ(fed.feed.newestChainTime(), at(0.04));
+  for (const double t : {0.0, 0.03, 0.04, 0.05, 3.0, 4.0})
+    expectChainTimesAsTf2(fed.feed, at(t), "after the jump");
   EXPECT_EQ(fed.events[TfEvent::kStaleIgnored], 0);
   EXPECT_TRUE(fed.feed.mount("laser", error));
   // Transforms tf2 would refuse are reported, not thrown.
@@ -481,8 +499,9 @@ TEST(TfFeed, WhyNotCoveredNamesTheCause) {
 // elsewhere it asks tf2.
 
 /// fixed -> base at `time` from the feed's motion source and from tf2's own lookup: the same bits, or
-/// neither answers.
+/// neither answers; the newest chain time and the coverage as tf2's too.
 void expectAsTf2(const TfFeed& feed, core::TimeNs time, const std::string& what) {
+  expectChainTimesAsTf2(feed, time, what);
   std::optional<mrpt::poses::CPose3D> ours, theirs;
   try {
     ours = feed.motion().basePose(time);

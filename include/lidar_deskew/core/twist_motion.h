@@ -131,7 +131,7 @@ class TwistMotion final : public MotionSource {
   double smoothComponent(int c, double ratio, std::size_t first, std::size_t last, bool keep);
   std::array<std::vector<Eigen::Vector2d>, 6> smoothed_;  // per component: (twist, rate) at centres
   std::size_t smoothed_first_ = 0;
-  double typical_ = 0.0;                        // [s] the window's median interval
+  double typical_ = 0.0;                        // [s] the window's median interval (estimateNoise())
   std::array<double, 6> diffuse_scale_{};       // smoothComponent()'s prior size, per component
   Twist chosen_ratio_ = Twist::Zero();          // the ratios chosen in the last prepare()
   bool followed_ = false;                       // the noisy twist followed (each interval its mean)

@@ -52,6 +52,13 @@ class OneLinkChain {
   void clearSamples();
   /// fixed -> base at `time` [ns] as tf2 would answer it, when the samples kept say so; else false.
   bool answer(core::TimeNs time, geometry_msgs::Transform& out) const;
+  /// True when answer() answers `time` [ns] (tf2 then answers it too).
+  bool answers(core::TimeNs time) const {
+    return valid_ && !samples_.empty() && time >= samples_.front().stamp && time <= samples_.back().stamp;
+  }
+  /// [ns] tf2's latest common time of fixed -> base (the dynamic link's newest stamp: statics have
+  /// none), when the samples kept say so; else 0.
+  core::TimeNs newest() const { return valid_ && !samples_.empty() ? samples_.back().stamp : 0; }
   /// The samples kept.
   std::size_t size() const { return samples_.size(); }
 
@@ -113,6 +120,7 @@ class TfMotionSource final : public core::MotionSource {
 
   /// The one-link chain that answers basePose without tf2 where it can (TfFeed keeps it).
   OneLinkChain& chain() { return chain_; }
+  const OneLinkChain& chain() const { return chain_; }
   /// How many times basePose asked tf2 (the one-link chain answered the others).
   std::size_t tfLookups() const { return tf_lookups_; }
 
