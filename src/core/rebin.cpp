@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
 
 #include "fast_atan2.h"
@@ -182,7 +183,44 @@ constexpr double kOnRayTolerance = 1e-9;
 /// The running bin position of a point not found: far below any ray, so that no ray computed from it
 /// (one on or after) is one.
 constexpr std::int32_t kNoPosition = -(1 << 28);
-/// Tolerance on a crossing's segment parameter in double: a ray through a contour's vertex meets it.
+/// locatePoints(): a point's position in float is not used where its bearing lies within this [rad] of a
+/// ray (the sum of its rounding errors and of bearingInFloat's, about 4.5e-6, with margin), nor where
+/// max(|x|, |y|) [m] lies outside these bounds (float's range); -1 marks it.
+constexpr double kBearingErrorFloat = 1e-5;
+constexpr float kMinFloatScale = 1e-18f, kMaxFloatScale = 1e18f;
+constexpr std::int32_t kNearRay = -1;
+
+/// A float's bits, and the float of bits: selects by masks for loops the compiler vectorises (it moves
+/// arithmetic selected by a condition into a branch, which it does not vectorise).
+inline std::uint32_t bitsOf(float value) {
+  std::uint32_t bits;
+  std::memcpy(&bits, &value, sizeof bits);
+  return bits;
+}
+inline float floatOf(std::uint32_t bits) {
+  float value;
+  std::memcpy(&value, &bits, sizeof value);
+  return value;
+}
+/// All ones when `condition`, else 0.
+inline std::uint32_t maskOf(bool condition) {
+  return 0u - static_cast<std::uint32_t>(condition);
+}
+constexpr std::uint32_t kSignBit = 0x80000000u;
+
+/// The bearing [rad] of (px, py) in float, from a = min(|px|, |py|) / max(|px|, |py|): an odd polynomial for
+/// atan on [0, 1] (least squares, error 1.7e-6 rad) and the octant's symmetries by masks.
+inline float bearingInFloat(float a, float px, float py) {
+  const float s = a * a;
+  const float r =
+      a * (0.99997722f +
+           s * (-0.33262283f + s * (0.19354038f + s * (-0.11642648f + s * (0.05264735f + s * -0.01171913f)))));
+  const std::uint32_t steep = maskOf(std::abs(py) > std::abs(px));  // pi/2 - r
+  const std::uint32_t left = maskOf(px < 0.0f);                      // pi - that
+  const float octant = floatOf(bitsOf(static_cast<float>(M_PI_2)) & steep) + floatOf(bitsOf(r) ^ (steep & kSignBit));
+  const float half = floatOf(bitsOf(static_cast<float>(M_PI)) & left) + floatOf(bitsOf(octant) ^ (left & kSignBit));
+  return floatOf(bitsOf(half) ^ (maskOf(py < 0.0f) & kSignBit));  // below the x axis: negated
+}
 
 }  // namespace
 
@@ -404,6 +442,13 @@ void ScanRebinner::updateRays(const AngleGrid& grid) {
     side_cos_[b] = direction_ * ray_cos_[b];
     side_sin_[b] = direction_ * ray_sin_[b];
   }
+  // Positions in float (locatePoints()) where the rays are within a quarter turn of each other; rays
+  // relative to the grid's first, wrapped into [0, 2pi) in double.
+  float_positions_ = running_ && abs_increment < 0.5 * M_PI_2;
+  bearing_origin_ = static_cast<float>(wrapToTurn(grid.angle_min));
+  bins_per_radian_ = running_ ? static_cast<float>(1.0 / abs_increment) : 0.0f;
+  position_guard_ = static_cast<float>(kBearingErrorFloat / abs_increment + std::ldexp(ray_count_, -21));
+  last_sure_bin_ = static_cast<float>(kTwoPi / abs_increment) - position_guard_;
   // Every bin starts with no crossing; writeNearestCrossings() leaves them so for the next scan.
   best_range_.assign(ray_count_, kInfinity);
   best_intensity_.assign(ray_count_, 0.0f);
@@ -428,6 +473,51 @@ void ScanRebinner::rebin(const DeskewedScan& corrected, const AngleGrid& grid, f
   bins_in_use_ = false;
 }
 
+void ScanRebinner::locatePoints(const Rays& rays) {
+  const std::size_t n = x_.size();
+  const double* const x = x_.data();
+  const double* const y = y_.data();
+  std::int32_t* const position = position_.data();
+  unsigned char* const near_ray = near_ray_.data();
+  // Every point's ray from its bearing in float, in a loop of arithmetic alone (vectorised): kNearRay where
+  // the bearing lies within its error bound (kBearingErrorFloat) of a ray, or the point is not of a size
+  // float holds. Elsewhere the point lies strictly between that ray and the next, as side() finds.
+  if (float_positions_) {
+    const float origin = bearing_origin_, direction = static_cast<float>(direction_);
+    const float bins_per_radian = bins_per_radian_, guard = position_guard_, last_sure = last_sure_bin_;
+    constexpr float kTurn = static_cast<float>(kTwoPi);
+    for (std::size_t j = 0; j < n; ++j) {
+      const float px = static_cast<float>(x[j]), py = static_cast<float>(y[j]);
+      const float ax = std::abs(px), ay = std::abs(py);
+      const float high = std::max(ax, ay), low = std::min(ax, ay);
+      const bool sane = (high > kMinFloatScale) & (high < kMaxFloatScale);
+      const float bearing = bearingInFloat(low / std::max(high, kMinFloatScale), px, py);
+      const float offset = direction * (bearing - origin);  // within (-3pi, 3pi): into [0, 2pi)
+      const float turn = floatOf(bitsOf(kTurn) & maskOf(offset < 0.0f)) - floatOf(bitsOf(kTurn) & maskOf(offset >= kTurn));
+      const float wrapped = offset + turn + floatOf(bitsOf(kTurn) & maskOf(offset < -kTurn));
+      const float bins = floatOf(bitsOf(wrapped * bins_per_radian) & maskOf(sane));  // (not NaN: 0)
+      const std::int32_t ray = static_cast<std::int32_t>(bins);
+      const float fraction = bins - static_cast<float>(ray);
+      const bool sure = sane & (fraction > guard) & (fraction < 1.0f - guard) & (bins < last_sure);
+      position[j] = sure ? ray : kNearRay;
+    }
+  } else {
+    std::fill(position, position + n, kNearRay);
+  }
+  // The others as before: walking from the last point's ray (side() decides, in double).
+  std::int32_t hint = 0;
+  for (std::size_t j = 0; j < n; ++j) {
+    const bool near = position[j] == kNearRay;
+    near_ray[j] = near;
+    if (near) {
+      double low = 0.0, high = 0.0;
+      const std::int32_t found = rays.locate(x[j], y[j], hint, low, high);
+      position[j] = found >= 0 ? found : kNoPosition;
+    }
+    hint = position[j] >= 0 ? position[j] : hint;
+  }
+}
+
 void ScanRebinner::readPoints(const Points& points, const BinSweep& sweep) {
   const std::size_t n = points.size();
   x_.resize(n);
@@ -436,6 +526,7 @@ void ScanRebinner::readPoints(const Points& points, const BinSweep& sweep) {
   cross_.resize(n);
   length2_.resize(n);
   position_.resize(n);
+  near_ray_.resize(n);
   has_next_.resize(n);
   joined_.resize(n);
   candidates_.resize(n + 1);
@@ -447,7 +538,6 @@ void ScanRebinner::readPoints(const Points& points, const BinSweep& sweep) {
   double* const x = x_.data();
   double* const y = y_.data();
   double* const scale = scale_.data();
-  std::int32_t* const position = position_.data();
   unsigned char* const has_next = has_next_.data();
   unsigned char* const joined = joined_.data();
   double* const cross_product = cross_.data();
@@ -460,7 +550,6 @@ void ScanRebinner::readPoints(const Points& points, const BinSweep& sweep) {
   // its position's ray or the next (within rounding). Finite when every |x| + |y| is (checked after).
   bool finite = true;
   std::uint32_t previous_beam = points[0].beam_index - 1;
-  std::int32_t hint = 0;
   for (std::size_t j = 0; j < n; ++j) {
     const double px = points[j].position.x(), py = points[j].position.y();
     const double size = std::abs(px) + std::abs(py);
@@ -471,12 +560,6 @@ void ScanRebinner::readPoints(const Points& points, const BinSweep& sweep) {
     const std::uint32_t beam = points[j].beam_index;
     has_next[j > 0 ? j - 1 : 0] = beam == previous_beam + 1;
     previous_beam = beam;
-    if (running) {
-      double low = 0.0, high = 0.0;
-      const std::int32_t found = rays.locate(px, py, hint, low, high);
-      position[j] = found >= 0 ? found : kNoPosition;
-      hint = found >= 0 ? found : hint;
-    }
   }
   if (!finite) {
     for (std::size_t j = 0; j < n; ++j) {
@@ -484,6 +567,8 @@ void ScanRebinner::readPoints(const Points& points, const BinSweep& sweep) {
         throw InvalidInput("points", "corrected point " + std::to_string(j) + " is not finite");
     }
   }
+  if (running)
+    locatePoints(rays);
   // For a full-circle grid the last beam also neighbours the first.
   wraps_ = sweep.isFullCircle() && n > 2 && points.front().beam_index == 0 &&
            points.back().beam_index + 1 == sweep.binCount();
@@ -564,42 +649,32 @@ void ScanRebinner::classifyLinks() {
     median = *middle;
   }
   flat_tolerance_ = kFlatToleranceFloor + kFlatToleranceMedians * median;
-  // Flat: within the tolerance of the line through its neighbours; a surface: joined, one end flat. The
-  // other neighbours wait for classifyRareLinks() (pending_).
+  // Flat: within the tolerance of the line through its neighbours (an infinite cross: no such line); a
+  // surface: joined, one end flat. The other neighbours wait for classifyRareLinks() (kPending). Loops of
+  // arithmetic on doubles, then on bytes (vectorised).
   const double tolerance2 = flat_tolerance_ * flat_tolerance_;
   flat_.resize(n);
   link_.resize(n);
-  pending_.resize(n);
+  if (n == 0)
+    return;
   unsigned char* const flat = flat_.data();
   const double* const cross_product = cross_.data();
   const double* const length2 = length2_.data();
+  for (std::size_t j = 0; j < n; ++j)
+    flat[j] = cross_product[j] * cross_product[j] <= tolerance2 * length2[j];
   const unsigned char* const joined = joined_.data();
   const unsigned char* const has_next = has_next_.data();
-  Link* const link = link_.data();
-  std::uint32_t* const pending = pending_.data();
-  std::size_t pending_count = 0;
-  const auto isFlat = [&](std::size_t j) {  // (an infinite cross: no neighbours' line)
-    return cross_product[j] * cross_product[j] <= tolerance2 * length2[j];
+  unsigned char* const link = reinterpret_cast<unsigned char*>(link_.data());  // (bytes: 0 or 1 each)
+  constexpr auto kSurface = static_cast<unsigned char>(Link::kSurface);
+  constexpr auto kPending = static_cast<unsigned char>(Link::kPending);
+  static_assert(static_cast<unsigned char>(Link::kNone) == 0, "kNone is the byte 0");
+  const auto classify = [&](std::size_t j, unsigned char flat_q) {
+    const unsigned char surface = joined[j] & (flat[j] | flat_q);
+    link[j] = static_cast<unsigned char>(surface * kSurface + (has_next[j] & (surface ^ 1u)) * kPending);
   };
-  // Link j - 1 once flat[j] is known (the last link, the full circle's, once flat[0] is).
-  const auto classify = [&](std::size_t j, bool flat_j, bool flat_q) {
-    const bool surface = joined[j] & (flat_j | flat_q);
-    link[j] = surface ? Link::kSurface : has_next[j] ? Link::kPending : Link::kNone;
-    pending[pending_count] = static_cast<std::uint32_t>(j);
-    pending_count += has_next[j] & !surface;
-  };
-  bool flat_previous = n > 0 && isFlat(0);
-  if (n > 0)
-    flat[0] = flat_previous;
-  for (std::size_t j = 1; j < n; ++j) {
-    const bool flat_j = isFlat(j);
-    flat[j] = flat_j;
-    classify(j - 1, flat_previous, flat_j);
-    flat_previous = flat_j;
-  }
-  if (n > 0)
-    classify(n - 1, flat_previous, flat[0]);
-  pending_count_ = pending_count;
+  for (std::size_t j = 0; j + 1 < n; ++j)
+    classify(j, flat[j + 1]);
+  classify(n - 1, flat[0]);  // the full circle's link (has_next: only then)
 }
 
 void ScanRebinner::classifyRareLinks(const BinSweep& sweep) {
@@ -607,8 +682,11 @@ void ScanRebinner::classifyRareLinks(const BinSweep& sweep) {
   corner_x_.resize(n);
   corner_y_.resize(n);
   Link* const link = link_.data();
-  for (std::size_t k = 0; k < pending_count_; ++k) {
-    const std::size_t j = pending_[k];
+  const auto findPending = [&](std::size_t from) {  // the next kPending link from `from`, or n (memchr)
+    const void* found = from < n ? std::memchr(link + from, static_cast<int>(Link::kPending), n - from) : nullptr;
+    return found ? static_cast<std::size_t>(static_cast<const Link*>(found) - link) : n;
+  };
+  for (std::size_t j = findPending(0); j < n; j = findPending(j + 1)) {
     const std::size_t q = next(j);
     // One of them flat (the line through its neighbours holds the other) and, a wall seen at a grazing
     // angle, its points farther apart than the gap: nearly joined.
