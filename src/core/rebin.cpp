@@ -377,7 +377,7 @@ unsigned ScanRebinner::onRay(std::size_t j) const {
 }
 
 void ScanRebinner::offerOwnRay(std::size_t j, const Points& points) {
-  if (!running_ || position_[j] < 0)
+  if (!running_ || position_[j] < 0 || !near_ray_[j])
     return;
   const unsigned on = onRay(j);
   const std::size_t ray = static_cast<std::size_t>(position_[j]);
@@ -403,7 +403,7 @@ bool ScanRebinner::crossSurface(std::size_t a, std::size_t b, const Points& poin
     std::swap(a, b);  // b before a in the grid's direction
     forward = ray_count - forward;
   }
-  const unsigned on_a = onRay(a), on_b = onRay(b);
+  const unsigned on_a = near_ray_[a] ? onRay(a) : 0u, on_b = near_ray_[b] ? onRay(b) : 0u;
   // bit 0: on its position's ray, bit 1: on the next ray; both points between the same two rays: either
   // one on them counts.
   const unsigned first_bit = (on_a | (forward == 0 ? on_b : 0u)) & 1u;
@@ -504,17 +504,18 @@ void ScanRebinner::locatePoints(const Rays& rays) {
   } else {
     std::fill(position, position + n, kNearRay);
   }
-  // The others as before: walking from the last point's ray (side() decides, in double).
-  std::int32_t hint = 0;
-  for (std::size_t j = 0; j < n; ++j) {
-    const bool near = position[j] == kNearRay;
-    near_ray[j] = near;
-    if (near) {
-      double low = 0.0, high = 0.0;
-      const std::int32_t found = rays.locate(x[j], y[j], hint, low, high);
-      position[j] = found >= 0 ? found : kNoPosition;
-    }
-    hint = position[j] >= 0 ? position[j] : hint;
+  // The others as before: walking from the last point's ray found (side() decides, in double).
+  for (std::size_t j = 0; j < n; ++j)
+    near_ray[j] = position[j] == kNearRay;
+  for (const unsigned char* found = static_cast<const unsigned char*>(std::memchr(near_ray, 1, n)); found;) {
+    const std::size_t j = static_cast<std::size_t>(found - near_ray);
+    std::size_t before = j;
+    while (before > 0 && position[before - 1] < 0)
+      --before;
+    double low = 0.0, high = 0.0;
+    const std::int32_t ray = rays.locate(x[j], y[j], before > 0 ? position[before - 1] : 0, low, high);
+    position[j] = ray >= 0 ? ray : kNoPosition;
+    found = j + 1 < n ? static_cast<const unsigned char*>(std::memchr(near_ray + j + 1, 1, n - j - 1)) : nullptr;
   }
 }
 
@@ -525,6 +526,7 @@ void ScanRebinner::readPoints(const Points& points, const BinSweep& sweep) {
   scale_.resize(n);
   cross_.resize(n);
   length2_.resize(n);
+  join_margin_.resize(n);
   position_.resize(n);
   near_ray_.resize(n);
   has_next_.resize(n);
@@ -596,17 +598,27 @@ void ScanRebinner::readPoints(const Points& points, const BinSweep& sweep) {
     length2[j] = l2;
     return linked && l2 != 0.0;
   };
-  // Residuals in a loop of arithmetic alone (vectorised); those without both neighbours made infinite
-  // after (never flat).
+  // Residuals, and how far within the gap from max(|x|, |y|) each point is of the next: loops of arithmetic
+  // alone (vectorised). Then, in order: joins (by the range where not within that gap), residuals infinite
+  // without both neighbours (never flat), the candidates.
   for (std::size_t j = 1; j + 1 < n; ++j) {
     const double ex = x[j + 1] - x[j - 1], ey = y[j + 1] - y[j - 1];
     cross_product[j] = ex * (y[j] - y[j - 1]) - ey * (x[j] - x[j - 1]);
     length2[j] = ex * ex + ey * ey;
   }
-  joined[0] = n > 1 && has_next[0] && isJoined(0, 1);
+  double* const join_margin = join_margin_.data();
+  for (std::size_t j = 0; j + 1 < n; ++j) {
+    const double dx = x[j + 1] - x[j], dy = y[j + 1] - y[j];
+    const double low_gap = min_gap + gap_per_range * std::max(scale[j], scale[j + 1]);
+    join_margin[j] = low_gap * low_gap - (dx * dx + dy * dy);
+  }
+  const auto isJoinedNext = [&](std::size_t j) {  // isJoined(j, j + 1), its first test done
+    return has_next[j] && (join_margin[j] >= 0.0 || isJoined(j, j + 1));
+  };
+  joined[0] = n > 1 && isJoinedNext(0);
   std::size_t count = 1;  // candidates[0] is kept for point 0 (below)
   for (std::size_t j = 1; j + 1 < n; ++j) {
-    const bool joined_j = has_next[j] && isJoined(j, j + 1);
+    const bool joined_j = isJoinedNext(j);
     joined[j] = joined_j;
     const bool line = has_next[j - 1] & has_next[j] & (length2[j] != 0.0);
     cross_product[j] = line ? cross_product[j] : kInfinity;
@@ -788,10 +800,21 @@ void ScanRebinner::traceContours(const Points& points, const BinSweep& sweep) {
   };
   for (std::size_t j = 0; j < n; ++j) {
     Link kind = link[j];
-    if (kind == Link::kSurface && running && crossSurfaceLink(j, j + 1 == n ? 0 : j + 1)) {
+    if (kind == Link::kSurface && running) {
+      // A run of surfaces, in one loop: each by running bin positions (the common case inline), by bearing
+      // where they cannot.
       if (j > 0 && !left_continues)
         ends_.push_back(j);
       left_continues = true;
+      for (;; ++j) {
+        const std::size_t q = j + 1 == n ? 0 : j + 1;
+        if (!crossSurfaceLink(j, q)) {
+          crossSegmentByBearing(x[j], y[j], bearingOf(j), points[j].intensity, x[q], y[q], bearingOf(q),
+                                points[q].intensity, sweep);
+        }
+        if (j + 1 == n || link[j + 1] != Link::kSurface)
+          break;
+      }
       continue;
     }
     const std::size_t q = kind == Link::kNone ? kNoPoint : next(j);

@@ -202,6 +202,7 @@ class ScanRebinner {
   std::vector<double> x_, y_, scale_;      // [m] the corrected point, max(|x|, |y|)
   std::vector<double> cross_, length2_;    // [m^2] its distance from its neighbours' line as |cross| /
                                            // sqrt(length2); cross infinite: no such line
+  std::vector<double> join_margin_;        // [m^2] how far within the gap from max(|x|, |y|) of its next
   std::vector<std::int32_t> position_;     // its running bin position (negative: not found)
   std::vector<unsigned char> near_ray_;    // the position found by side() (near a ray): onRay() may hold
   std::vector<unsigned char> has_next_;    // j's next point is its neighbour (beam index + 1, or the wrap)
