@@ -612,18 +612,22 @@ void ScanRebinner::readPoints(const Points& points, const BinSweep& sweep) {
     const double low_gap = min_gap + gap_per_range * std::max(scale[j], scale[j + 1]);
     join_margin[j] = low_gap * low_gap - (dx * dx + dy * dy);
   }
-  const auto isJoinedNext = [&](std::size_t j) {  // isJoined(j, j + 1), its first test done
-    return has_next[j] && (join_margin[j] >= 0.0 || isJoined(j, j + 1));
+  const auto isJoinedNext = [&](std::size_t j) -> unsigned char {  // isJoined(j, j + 1), its first test done
+    const unsigned char within = has_next[j] & (join_margin[j] >= 0.0);
+    return has_next[j] > within ? isJoined(j, j + 1) : within;  // (rare: the range's square root)
   };
   joined[0] = n > 1 && isJoinedNext(0);
   std::size_t count = 1;  // candidates[0] is kept for point 0 (below)
+  unsigned char joined_previous = joined[0];
   for (std::size_t j = 1; j + 1 < n; ++j) {
-    const bool joined_j = isJoinedNext(j);
+    const unsigned char joined_j = isJoinedNext(j);
     joined[j] = joined_j;
-    const bool line = has_next[j - 1] & has_next[j] & (length2[j] != 0.0);
-    cross_product[j] = line ? cross_product[j] : kInfinity;
+    const unsigned char line = has_next[j - 1] & has_next[j] & (length2[j] != 0.0);
+    if (!line)
+      cross_product[j] = kInfinity;
     candidates[count] = static_cast<std::uint32_t>(j);
-    count += joined[j - 1] & joined_j & line;
+    count += joined_previous & joined_j & line;
+    joined_previous = joined_j;
   }
   joined[n - 1] = wraps_ && isJoined(n - 1, 0);
   cross_product[0] = cross_product[n - 1] = kInfinity;
@@ -798,6 +802,22 @@ void ScanRebinner::traceContours(const Points& points, const BinSweep& sweep) {
     }
     return true;
   };
+  // Links begin .. end - 1, each with the one ray between its points' positions, those rays consecutive: a
+  // loop of arithmetic (vectorised), no intensities.
+  const auto crossOneRayEach = [&](std::size_t begin, std::size_t end) {
+    const double* const px = x_.data() + begin;  // (locals: loads through the closure are not vectorised)
+    const double* const py = y_.data() + begin;
+    const std::size_t first_ray = static_cast<std::size_t>(position[begin] + 1);
+    const double* const cosine = ray_cos_.data() + first_ray;
+    const double* const sine = ray_sin_.data() + first_ray;
+    double* const best = best_range_.data() + first_ray;
+    for (std::size_t k = 0; k < end - begin; ++k) {
+      const double ex = px[k + 1] - px[k], ey = py[k + 1] - py[k];
+      const double numerator = px[k] * ey - py[k] * ex;
+      const double range = numerator / (cosine[k] * ey - sine[k] * ex);
+      best[k] = (range > 0.0) & (range < best[k]) ? range : best[k];
+    }
+  };
   for (std::size_t j = 0; j < n; ++j) {
     Link kind = link[j];
     if (kind == Link::kSurface && running) {
@@ -807,6 +827,19 @@ void ScanRebinner::traceContours(const Points& points, const BinSweep& sweep) {
         ends_.push_back(j);
       left_continues = true;
       for (;; ++j) {
+        std::size_t last = j;  // without intensities, links j .. last - 1 have one ray each, consecutive
+        if (!with_intensities) {
+          while (last + 1 < n && link[last] == Link::kSurface && position[last] >= 0 &&
+                 position[last + 1] == position[last] + 1) {
+            ++last;
+          }
+          crossOneRayEach(j, last);
+          if (last > j && link[last] != Link::kSurface) {
+            j = last - 1;
+            break;
+          }
+          j = last;
+        }
         const std::size_t q = j + 1 == n ? 0 : j + 1;
         if (!crossSurfaceLink(j, q)) {
           crossSegmentByBearing(x[j], y[j], bearingOf(j), points[j].intensity, x[q], y[q], bearingOf(q),
