@@ -94,8 +94,9 @@ class ScanRebinner {
 
   // The steps of rebin(), in order. The common case (points on surfaces, one ray between neighbours) runs
   // over plain arrays in loops of arithmetic and bytes; bearings (atan2) and square roots only for the
-  // rare links (corners, steps, grazing walls) and contour ends. Double, not float: float's rounding
-  // moved ranges by micrometres, enough to move bins across the 10 mm mark of the scan metrics.
+  // rare links (corners, steps, grazing walls) and contour ends. Outputs in double (float's rounding moved
+  // ranges across the 10 mm mark of the scan metrics); float only for decisions it makes exactly, with a
+  // guard band about each threshold where double decides (locatePoints()).
   /// Recomputes the rays when `grid` differs from the one they were made for.
   void updateRays(const AngleGrid& grid);
   /// Fills x_, y_, scale_, has_next_, position_ (the running bin positions), joined_, the
