@@ -189,6 +189,8 @@ constexpr std::int32_t kNoPosition = -(1 << 28);
 constexpr double kBearingErrorFloat = 1e-5;
 constexpr float kMinFloatScale = 1e-18f, kMaxFloatScale = 1e18f;
 constexpr std::int32_t kNearRay = -1;
+/// [rad] float positions only for grids whose angle_min is within this (rays' angles exact to 1e-13 rad).
+constexpr double kMaxFloatAngleMin = 1e3;
 
 /// A float's bits, and the float of bits: selects by masks for loops the compiler vectorises (it moves
 /// arithmetic selected by a condition into a branch, which it does not vectorise).
@@ -442,9 +444,10 @@ void ScanRebinner::updateRays(const AngleGrid& grid) {
     side_cos_[b] = direction_ * ray_cos_[b];
     side_sin_[b] = direction_ * ray_sin_[b];
   }
-  // Positions in float (locatePoints()) where the rays are within a quarter turn of each other; rays
-  // relative to the grid's first, wrapped into [0, 2pi) in double.
-  float_positions_ = running_ && abs_increment < 0.5 * M_PI_2;
+  // Positions in float (locatePoints()) where the rays are within a quarter turn of each other and their
+  // angles in double are exact to far within its error bound; rays relative to the grid's first, wrapped
+  // into [0, 2pi) in double.
+  float_positions_ = running_ && abs_increment < 0.5 * M_PI_2 && std::abs(grid.angle_min) < kMaxFloatAngleMin;
   bearing_origin_ = static_cast<float>(wrapToTurn(grid.angle_min));
   bins_per_radian_ = running_ ? static_cast<float>(1.0 / abs_increment) : 0.0f;
   position_guard_ = static_cast<float>(kBearingErrorFloat / abs_increment + std::ldexp(ray_count_, -21));
