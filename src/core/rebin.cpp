@@ -554,7 +554,7 @@ void ScanRebinner::readPoints(const Points& points, const BinSweep& sweep) {
   // each found from the previous point's (one to three rays tried, most often); whether a point lies on
   // its position's ray or the next (within rounding). Finite when every |x| + |y| is (checked after).
   bool finite = true;
-  std::uint32_t previous_beam = points[0].beam_index - 1;
+  std::uint32_t previous_beam = points[0].beam_index;
   for (std::size_t j = 0; j < n; ++j) {
     const double px = points[j].position.x(), py = points[j].position.y();
     const double size = std::abs(px) + std::abs(py);
@@ -562,8 +562,8 @@ void ScanRebinner::readPoints(const Points& points, const BinSweep& sweep) {
     x[j] = px;
     y[j] = py;
     scale[j] = std::max(std::abs(px), std::abs(py));
-    const std::uint32_t beam = points[j].beam_index;
-    has_next[j > 0 ? j - 1 : 0] = beam == previous_beam + 1;
+    const std::uint32_t beam = points[j + 1 < n ? j + 1 : j].beam_index;  // (the last one's: set below)
+    has_next[j] = beam == previous_beam + 1;
     previous_beam = beam;
   }
   if (!finite) {
