@@ -932,13 +932,21 @@ void ScanRebinner::writeNearestCrossings(float no_return, RebinnedScan& out) {
   const std::size_t bin_count = rays_grid_.count;
   out.ranges.resize(bin_count);
   std::fill(best_range_.begin() + static_cast<std::ptrdiff_t>(bin_count), best_range_.end(), kInfinity);
-  // Each bin read, written out and left empty for the next scan: no separate clearing pass.
+  // Each bin read, written out and left empty for the next scan: no separate clearing pass. A bin is
+  // finite or +inf (no crossing): converted alone (vectorised) when "no return" is +inf too.
   double* const best_range = best_range_.data();
   float* const ranges = out.ranges.data();
-  for (std::size_t b = 0; b < bin_count; ++b) {
-    const double range = best_range[b];
-    ranges[b] = range < kInfinity ? static_cast<float>(range) : no_return;
-    best_range[b] = kInfinity;
+  if (no_return == std::numeric_limits<float>::infinity()) {
+    for (std::size_t b = 0; b < bin_count; ++b) {
+      ranges[b] = static_cast<float>(best_range[b]);
+      best_range[b] = kInfinity;
+    }
+  } else {
+    for (std::size_t b = 0; b < bin_count; ++b) {
+      const double range = best_range[b];
+      ranges[b] = range < kInfinity ? static_cast<float>(range) : no_return;
+      best_range[b] = kInfinity;
+    }
   }
   if (with_intensities_) {
     out.intensities.resize(bin_count);
