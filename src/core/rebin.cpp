@@ -832,10 +832,9 @@ void ScanRebinner::traceContours(const Points& points, const BinSweep& sweep) {
       for (;; ++j) {
         std::size_t last = j;  // without intensities, links j .. last - 1 have one ray each, consecutive
         if (!with_intensities) {
-          while (last + 1 < n && link[last] == Link::kSurface && position[last] >= 0 &&
-                 position[last + 1] == position[last] + 1) {
+          // (positions are rays or kNoPosition: one more than the last point's is a ray)
+          while (last + 1 < n && link[last] == Link::kSurface && position[last + 1] == position[last] + 1)
             ++last;
-          }
           crossOneRayEach(j, last);
           if (last > j && link[last] != Link::kSurface) {
             j = last - 1;
