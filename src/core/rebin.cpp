@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
 
 #include "fast_atan2.h"
@@ -182,7 +183,46 @@ constexpr double kOnRayTolerance = 1e-9;
 /// The running bin position of a point not found: far below any ray, so that no ray computed from it
 /// (one on or after) is one.
 constexpr std::int32_t kNoPosition = -(1 << 28);
-/// Tolerance on a crossing's segment parameter in double: a ray through a contour's vertex meets it.
+/// locatePoints(): a point's position in float is not used where its bearing lies within this [rad] of a
+/// ray (the sum of its rounding errors and of bearingInFloat's, about 4.5e-6, with margin), nor where
+/// max(|x|, |y|) [m] lies outside these bounds (float's range); -1 marks it.
+constexpr double kBearingErrorFloat = 1e-5;
+constexpr float kMinFloatScale = 1e-18f, kMaxFloatScale = 1e18f;
+constexpr std::int32_t kNearRay = -1;
+/// [rad] float positions only for grids whose angle_min is within this (rays' angles exact to 1e-13 rad).
+constexpr double kMaxFloatAngleMin = 1e3;
+
+/// A float's bits, and the float of bits: selects by masks for loops the compiler vectorises (it moves
+/// arithmetic selected by a condition into a branch, which it does not vectorise).
+inline std::uint32_t bitsOf(float value) {
+  std::uint32_t bits;
+  std::memcpy(&bits, &value, sizeof bits);
+  return bits;
+}
+inline float floatOf(std::uint32_t bits) {
+  float value;
+  std::memcpy(&value, &bits, sizeof value);
+  return value;
+}
+/// All ones when `condition`, else 0.
+inline std::uint32_t maskOf(bool condition) {
+  return 0u - static_cast<std::uint32_t>(condition);
+}
+constexpr std::uint32_t kSignBit = 0x80000000u;
+
+/// The bearing [rad] of (px, py) in float, from a = min(|px|, |py|) / max(|px|, |py|): an odd polynomial for
+/// atan on [0, 1] (least squares, error 1.7e-6 rad) and the octant's symmetries by masks.
+inline float bearingInFloat(float a, float px, float py) {
+  const float s = a * a;
+  const float r =
+      a * (0.99997722f +
+           s * (-0.33262283f + s * (0.19354038f + s * (-0.11642648f + s * (0.05264735f + s * -0.01171913f)))));
+  const std::uint32_t steep = maskOf(std::abs(py) > std::abs(px));  // pi/2 - r
+  const std::uint32_t left = maskOf(px < 0.0f);                      // pi - that
+  const float octant = floatOf(bitsOf(static_cast<float>(M_PI_2)) & steep) + floatOf(bitsOf(r) ^ (steep & kSignBit));
+  const float half = floatOf(bitsOf(static_cast<float>(M_PI)) & left) + floatOf(bitsOf(octant) ^ (left & kSignBit));
+  return floatOf(bitsOf(half) ^ (maskOf(py < 0.0f) & kSignBit));  // below the x axis: negated
+}
 
 }  // namespace
 
@@ -339,7 +379,7 @@ unsigned ScanRebinner::onRay(std::size_t j) const {
 }
 
 void ScanRebinner::offerOwnRay(std::size_t j, const Points& points) {
-  if (!running_ || position_[j] < 0)
+  if (!running_ || position_[j] < 0 || !near_ray_[j])
     return;
   const unsigned on = onRay(j);
   const std::size_t ray = static_cast<std::size_t>(position_[j]);
@@ -365,7 +405,7 @@ bool ScanRebinner::crossSurface(std::size_t a, std::size_t b, const Points& poin
     std::swap(a, b);  // b before a in the grid's direction
     forward = ray_count - forward;
   }
-  const unsigned on_a = onRay(a), on_b = onRay(b);
+  const unsigned on_a = near_ray_[a] ? onRay(a) : 0u, on_b = near_ray_[b] ? onRay(b) : 0u;
   // bit 0: on its position's ray, bit 1: on the next ray; both points between the same two rays: either
   // one on them counts.
   const unsigned first_bit = (on_a | (forward == 0 ? on_b : 0u)) & 1u;
@@ -404,6 +444,14 @@ void ScanRebinner::updateRays(const AngleGrid& grid) {
     side_cos_[b] = direction_ * ray_cos_[b];
     side_sin_[b] = direction_ * ray_sin_[b];
   }
+  // Positions in float (locatePoints()) where the rays are within a quarter turn of each other and their
+  // angles in double are exact to far within its error bound; rays relative to the grid's first, wrapped
+  // into [0, 2pi) in double.
+  float_positions_ = running_ && abs_increment < 0.5 * M_PI_2 && std::abs(grid.angle_min) < kMaxFloatAngleMin;
+  bearing_origin_ = static_cast<float>(wrapToTurn(grid.angle_min));
+  bins_per_radian_ = running_ ? static_cast<float>(1.0 / abs_increment) : 0.0f;
+  position_guard_ = static_cast<float>(kBearingErrorFloat / abs_increment + std::ldexp(ray_count_, -21));
+  last_sure_bin_ = static_cast<float>(kTwoPi / abs_increment) - position_guard_;
   // Every bin starts with no crossing; writeNearestCrossings() leaves them so for the next scan.
   best_range_.assign(ray_count_, kInfinity);
   best_intensity_.assign(ray_count_, 0.0f);
@@ -428,6 +476,52 @@ void ScanRebinner::rebin(const DeskewedScan& corrected, const AngleGrid& grid, f
   bins_in_use_ = false;
 }
 
+void ScanRebinner::locatePoints(const Rays& rays) {
+  const std::size_t n = x_.size();
+  const double* const x = x_.data();
+  const double* const y = y_.data();
+  std::int32_t* const position = position_.data();
+  unsigned char* const near_ray = near_ray_.data();
+  // Every point's ray from its bearing in float, in a loop of arithmetic alone (vectorised): kNearRay where
+  // the bearing lies within its error bound (kBearingErrorFloat) of a ray, or the point is not of a size
+  // float holds. Elsewhere the point lies strictly between that ray and the next, as side() finds.
+  if (float_positions_) {
+    const float origin = bearing_origin_, direction = static_cast<float>(direction_);
+    const float bins_per_radian = bins_per_radian_, guard = position_guard_, last_sure = last_sure_bin_;
+    constexpr float kTurn = static_cast<float>(kTwoPi);
+    for (std::size_t j = 0; j < n; ++j) {
+      const float px = static_cast<float>(x[j]), py = static_cast<float>(y[j]);
+      const float ax = std::abs(px), ay = std::abs(py);
+      const float high = std::max(ax, ay), low = std::min(ax, ay);
+      const bool sane = (high > kMinFloatScale) & (high < kMaxFloatScale);
+      const float bearing = bearingInFloat(low / std::max(high, kMinFloatScale), px, py);
+      const float offset = direction * (bearing - origin);  // within (-3pi, 3pi): into [0, 2pi)
+      const float turn = floatOf(bitsOf(kTurn) & maskOf(offset < 0.0f)) - floatOf(bitsOf(kTurn) & maskOf(offset >= kTurn));
+      const float wrapped = offset + turn + floatOf(bitsOf(kTurn) & maskOf(offset < -kTurn));
+      const float bins = floatOf(bitsOf(wrapped * bins_per_radian) & maskOf(sane));  // (not NaN: 0)
+      const std::int32_t ray = static_cast<std::int32_t>(bins);
+      const float fraction = bins - static_cast<float>(ray);
+      const bool sure = sane & (fraction > guard) & (fraction < 1.0f - guard) & (bins < last_sure);
+      position[j] = sure ? ray : kNearRay;
+    }
+  } else {
+    std::fill(position, position + n, kNearRay);
+  }
+  // The others as before: walking from the last point's ray found (side() decides, in double).
+  for (std::size_t j = 0; j < n; ++j)
+    near_ray[j] = position[j] == kNearRay;
+  for (const unsigned char* found = static_cast<const unsigned char*>(std::memchr(near_ray, 1, n)); found;) {
+    const std::size_t j = static_cast<std::size_t>(found - near_ray);
+    std::size_t before = j;
+    while (before > 0 && position[before - 1] < 0)
+      --before;
+    double low = 0.0, high = 0.0;
+    const std::int32_t ray = rays.locate(x[j], y[j], before > 0 ? position[before - 1] : 0, low, high);
+    position[j] = ray >= 0 ? ray : kNoPosition;
+    found = j + 1 < n ? static_cast<const unsigned char*>(std::memchr(near_ray + j + 1, 1, n - j - 1)) : nullptr;
+  }
+}
+
 void ScanRebinner::readPoints(const Points& points, const BinSweep& sweep) {
   const std::size_t n = points.size();
   x_.resize(n);
@@ -435,7 +529,9 @@ void ScanRebinner::readPoints(const Points& points, const BinSweep& sweep) {
   scale_.resize(n);
   cross_.resize(n);
   length2_.resize(n);
+  join_margin_.resize(n);
   position_.resize(n);
+  near_ray_.resize(n);
   has_next_.resize(n);
   joined_.resize(n);
   candidates_.resize(n + 1);
@@ -447,7 +543,6 @@ void ScanRebinner::readPoints(const Points& points, const BinSweep& sweep) {
   double* const x = x_.data();
   double* const y = y_.data();
   double* const scale = scale_.data();
-  std::int32_t* const position = position_.data();
   unsigned char* const has_next = has_next_.data();
   unsigned char* const joined = joined_.data();
   double* const cross_product = cross_.data();
@@ -459,8 +554,7 @@ void ScanRebinner::readPoints(const Points& points, const BinSweep& sweep) {
   // each found from the previous point's (one to three rays tried, most often); whether a point lies on
   // its position's ray or the next (within rounding). Finite when every |x| + |y| is (checked after).
   bool finite = true;
-  std::uint32_t previous_beam = points[0].beam_index - 1;
-  std::int32_t hint = 0;
+  std::uint32_t previous_beam = points[0].beam_index;
   for (std::size_t j = 0; j < n; ++j) {
     const double px = points[j].position.x(), py = points[j].position.y();
     const double size = std::abs(px) + std::abs(py);
@@ -468,15 +562,9 @@ void ScanRebinner::readPoints(const Points& points, const BinSweep& sweep) {
     x[j] = px;
     y[j] = py;
     scale[j] = std::max(std::abs(px), std::abs(py));
-    const std::uint32_t beam = points[j].beam_index;
-    has_next[j > 0 ? j - 1 : 0] = beam == previous_beam + 1;
+    const std::uint32_t beam = points[j + 1 < n ? j + 1 : j].beam_index;  // (the last one's: set below)
+    has_next[j] = beam == previous_beam + 1;
     previous_beam = beam;
-    if (running) {
-      double low = 0.0, high = 0.0;
-      const std::int32_t found = rays.locate(px, py, hint, low, high);
-      position[j] = found >= 0 ? found : kNoPosition;
-      hint = found >= 0 ? found : hint;
-    }
   }
   if (!finite) {
     for (std::size_t j = 0; j < n; ++j) {
@@ -484,6 +572,8 @@ void ScanRebinner::readPoints(const Points& points, const BinSweep& sweep) {
         throw InvalidInput("points", "corrected point " + std::to_string(j) + " is not finite");
     }
   }
+  if (running)
+    locatePoints(rays);
   // For a full-circle grid the last beam also neighbours the first.
   wraps_ = sweep.isFullCircle() && n > 2 && points.front().beam_index == 0 &&
            points.back().beam_index + 1 == sweep.binCount();
@@ -511,22 +601,36 @@ void ScanRebinner::readPoints(const Points& points, const BinSweep& sweep) {
     length2[j] = l2;
     return linked && l2 != 0.0;
   };
-  // Residuals in a loop of arithmetic alone (vectorised); those without both neighbours made infinite
-  // after (never flat).
+  // Residuals, and how far within the gap from max(|x|, |y|) each point is of the next: loops of arithmetic
+  // alone (vectorised). Then, in order: joins (by the range where not within that gap), residuals infinite
+  // without both neighbours (never flat), the candidates.
   for (std::size_t j = 1; j + 1 < n; ++j) {
     const double ex = x[j + 1] - x[j - 1], ey = y[j + 1] - y[j - 1];
     cross_product[j] = ex * (y[j] - y[j - 1]) - ey * (x[j] - x[j - 1]);
     length2[j] = ex * ex + ey * ey;
   }
-  joined[0] = n > 1 && has_next[0] && isJoined(0, 1);
+  double* const join_margin = join_margin_.data();
+  for (std::size_t j = 0; j + 1 < n; ++j) {
+    const double dx = x[j + 1] - x[j], dy = y[j + 1] - y[j];
+    const double low_gap = min_gap + gap_per_range * std::max(scale[j], scale[j + 1]);
+    join_margin[j] = low_gap * low_gap - (dx * dx + dy * dy);
+  }
+  const auto isJoinedNext = [&](std::size_t j) -> unsigned char {  // isJoined(j, j + 1), its first test done
+    const unsigned char within = has_next[j] & (join_margin[j] >= 0.0);
+    return has_next[j] > within ? isJoined(j, j + 1) : within;  // (rare: the range's square root)
+  };
+  joined[0] = n > 1 && isJoinedNext(0);
   std::size_t count = 1;  // candidates[0] is kept for point 0 (below)
+  unsigned char joined_previous = joined[0];
   for (std::size_t j = 1; j + 1 < n; ++j) {
-    const bool joined_j = has_next[j] && isJoined(j, j + 1);
+    const unsigned char joined_j = isJoinedNext(j);
     joined[j] = joined_j;
-    const bool line = has_next[j - 1] & has_next[j] & (length2[j] != 0.0);
-    cross_product[j] = line ? cross_product[j] : kInfinity;
+    const unsigned char line = has_next[j - 1] & has_next[j] & (length2[j] != 0.0);
+    if (!line)
+      cross_product[j] = kInfinity;
     candidates[count] = static_cast<std::uint32_t>(j);
-    count += joined[j - 1] & joined_j & line;
+    count += joined_previous & joined_j & line;
+    joined_previous = joined_j;
   }
   joined[n - 1] = wraps_ && isJoined(n - 1, 0);
   cross_product[0] = cross_product[n - 1] = kInfinity;
@@ -564,42 +668,32 @@ void ScanRebinner::classifyLinks() {
     median = *middle;
   }
   flat_tolerance_ = kFlatToleranceFloor + kFlatToleranceMedians * median;
-  // Flat: within the tolerance of the line through its neighbours; a surface: joined, one end flat. The
-  // other neighbours wait for classifyRareLinks() (pending_).
+  // Flat: within the tolerance of the line through its neighbours (an infinite cross: no such line); a
+  // surface: joined, one end flat. The other neighbours wait for classifyRareLinks() (kPending). Loops of
+  // arithmetic on doubles, then on bytes (vectorised).
   const double tolerance2 = flat_tolerance_ * flat_tolerance_;
   flat_.resize(n);
   link_.resize(n);
-  pending_.resize(n);
+  if (n == 0)
+    return;
   unsigned char* const flat = flat_.data();
   const double* const cross_product = cross_.data();
   const double* const length2 = length2_.data();
+  for (std::size_t j = 0; j < n; ++j)
+    flat[j] = cross_product[j] * cross_product[j] <= tolerance2 * length2[j];
   const unsigned char* const joined = joined_.data();
   const unsigned char* const has_next = has_next_.data();
-  Link* const link = link_.data();
-  std::uint32_t* const pending = pending_.data();
-  std::size_t pending_count = 0;
-  const auto isFlat = [&](std::size_t j) {  // (an infinite cross: no neighbours' line)
-    return cross_product[j] * cross_product[j] <= tolerance2 * length2[j];
+  unsigned char* const link = reinterpret_cast<unsigned char*>(link_.data());  // (bytes: 0 or 1 each)
+  constexpr auto kSurface = static_cast<unsigned char>(Link::kSurface);
+  constexpr auto kPending = static_cast<unsigned char>(Link::kPending);
+  static_assert(static_cast<unsigned char>(Link::kNone) == 0, "kNone is the byte 0");
+  const auto classify = [&](std::size_t j, unsigned char flat_q) {
+    const unsigned char surface = joined[j] & (flat[j] | flat_q);
+    link[j] = static_cast<unsigned char>(surface * kSurface + (has_next[j] & (surface ^ 1u)) * kPending);
   };
-  // Link j - 1 once flat[j] is known (the last link, the full circle's, once flat[0] is).
-  const auto classify = [&](std::size_t j, bool flat_j, bool flat_q) {
-    const bool surface = joined[j] & (flat_j | flat_q);
-    link[j] = surface ? Link::kSurface : has_next[j] ? Link::kPending : Link::kNone;
-    pending[pending_count] = static_cast<std::uint32_t>(j);
-    pending_count += has_next[j] & !surface;
-  };
-  bool flat_previous = n > 0 && isFlat(0);
-  if (n > 0)
-    flat[0] = flat_previous;
-  for (std::size_t j = 1; j < n; ++j) {
-    const bool flat_j = isFlat(j);
-    flat[j] = flat_j;
-    classify(j - 1, flat_previous, flat_j);
-    flat_previous = flat_j;
-  }
-  if (n > 0)
-    classify(n - 1, flat_previous, flat[0]);
-  pending_count_ = pending_count;
+  for (std::size_t j = 0; j + 1 < n; ++j)
+    classify(j, flat[j + 1]);
+  classify(n - 1, flat[0]);  // the full circle's link (has_next: only then)
 }
 
 void ScanRebinner::classifyRareLinks(const BinSweep& sweep) {
@@ -607,8 +701,11 @@ void ScanRebinner::classifyRareLinks(const BinSweep& sweep) {
   corner_x_.resize(n);
   corner_y_.resize(n);
   Link* const link = link_.data();
-  for (std::size_t k = 0; k < pending_count_; ++k) {
-    const std::size_t j = pending_[k];
+  const auto findPending = [&](std::size_t from) {  // the next kPending link from `from`, or n (memchr)
+    const void* found = from < n ? std::memchr(link + from, static_cast<int>(Link::kPending), n - from) : nullptr;
+    return found ? static_cast<std::size_t>(static_cast<const Link*>(found) - link) : n;
+  };
+  for (std::size_t j = findPending(0); j < n; j = findPending(j + 1)) {
     const std::size_t q = next(j);
     // One of them flat (the line through its neighbours holds the other) and, a wall seen at a grazing
     // angle, its points farther apart than the gap: nearly joined.
@@ -708,12 +805,51 @@ void ScanRebinner::traceContours(const Points& points, const BinSweep& sweep) {
     }
     return true;
   };
+  // Links begin .. end - 1, each with the one ray between its points' positions, those rays consecutive: a
+  // loop of arithmetic (vectorised), no intensities.
+  const auto crossOneRayEach = [&](std::size_t begin, std::size_t end) {
+    const double* const px = x_.data() + begin;  // (locals: loads through the closure are not vectorised)
+    const double* const py = y_.data() + begin;
+    const std::size_t first_ray = static_cast<std::size_t>(position[begin] + 1);
+    const double* const cosine = ray_cos_.data() + first_ray;
+    const double* const sine = ray_sin_.data() + first_ray;
+    double* const best = best_range_.data() + first_ray;
+    for (std::size_t k = 0; k < end - begin; ++k) {
+      const double ex = px[k + 1] - px[k], ey = py[k + 1] - py[k];
+      const double numerator = px[k] * ey - py[k] * ex;
+      const double range = numerator / (cosine[k] * ey - sine[k] * ex);
+      best[k] = (range > 0.0) & (range < best[k]) ? range : best[k];
+    }
+  };
   for (std::size_t j = 0; j < n; ++j) {
     Link kind = link[j];
-    if (kind == Link::kSurface && running && crossSurfaceLink(j, j + 1 == n ? 0 : j + 1)) {
+    if (kind == Link::kSurface && running) {
+      // A run of surfaces, in one loop: each by running bin positions (the common case inline), by bearing
+      // where they cannot.
       if (j > 0 && !left_continues)
         ends_.push_back(j);
       left_continues = true;
+      for (;; ++j) {
+        std::size_t last = j;  // without intensities, links j .. last - 1 have one ray each, consecutive
+        if (!with_intensities) {
+          // (positions are rays or kNoPosition: one more than the last point's is a ray)
+          while (last + 1 < n && link[last] == Link::kSurface && position[last + 1] == position[last] + 1)
+            ++last;
+          crossOneRayEach(j, last);
+          if (last > j && link[last] != Link::kSurface) {
+            j = last - 1;
+            break;
+          }
+          j = last;
+        }
+        const std::size_t q = j + 1 == n ? 0 : j + 1;
+        if (!crossSurfaceLink(j, q)) {
+          crossSegmentByBearing(x[j], y[j], bearingOf(j), points[j].intensity, x[q], y[q], bearingOf(q),
+                                points[q].intensity, sweep);
+        }
+        if (j + 1 == n || link[j + 1] != Link::kSurface)
+          break;
+      }
       continue;
     }
     const std::size_t q = kind == Link::kNone ? kNoPoint : next(j);
@@ -795,13 +931,21 @@ void ScanRebinner::writeNearestCrossings(float no_return, RebinnedScan& out) {
   const std::size_t bin_count = rays_grid_.count;
   out.ranges.resize(bin_count);
   std::fill(best_range_.begin() + static_cast<std::ptrdiff_t>(bin_count), best_range_.end(), kInfinity);
-  // Each bin read, written out and left empty for the next scan: no separate clearing pass.
+  // Each bin read, written out and left empty for the next scan: no separate clearing pass. A bin is
+  // finite or +inf (no crossing): converted alone (vectorised) when "no return" is +inf too.
   double* const best_range = best_range_.data();
   float* const ranges = out.ranges.data();
-  for (std::size_t b = 0; b < bin_count; ++b) {
-    const double range = best_range[b];
-    ranges[b] = range < kInfinity ? static_cast<float>(range) : no_return;
-    best_range[b] = kInfinity;
+  if (no_return == std::numeric_limits<float>::infinity()) {
+    for (std::size_t b = 0; b < bin_count; ++b) {
+      ranges[b] = static_cast<float>(best_range[b]);
+      best_range[b] = kInfinity;
+    }
+  } else {
+    for (std::size_t b = 0; b < bin_count; ++b) {
+      const double range = best_range[b];
+      ranges[b] = range < kInfinity ? static_cast<float>(range) : no_return;
+      best_range[b] = kInfinity;
+    }
   }
   if (with_intensities_) {
     out.intensities.resize(bin_count);

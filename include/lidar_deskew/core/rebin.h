@@ -79,6 +79,7 @@ class ScanRebinner {
 
  private:
   class BinSweep;  // finds the bins whose rays lie in an angle interval (defined in rebin.cpp)
+  struct Rays;     // the rays for running bin positions (defined in rebin.cpp: locate() there)
   using Points = std::vector<DeskewedPoint>;
 
   /// What joins point j to the next one (beam index + 1, or the full circle's wrap).
@@ -93,14 +94,17 @@ class ScanRebinner {
 
   // The steps of rebin(), in order. The common case (points on surfaces, one ray between neighbours) runs
   // over plain arrays in loops of arithmetic and bytes; bearings (atan2) and square roots only for the
-  // rare links (corners, steps, grazing walls) and contour ends. Double, not float: float's rounding
-  // moved ranges by micrometres, enough to move bins across the 10 mm mark of the scan metrics.
+  // rare links (corners, steps, grazing walls) and contour ends. Outputs in double (float's rounding moved
+  // ranges across the 10 mm mark of the scan metrics); float only for decisions it makes exactly, with a
+  // guard band about each threshold where double decides (locatePoints()).
   /// Recomputes the rays when `grid` differs from the one they were made for.
   void updateRays(const AngleGrid& grid);
   /// Fills x_, y_, scale_, has_next_, position_ (the running bin positions), joined_, the
   /// residuals and the noise candidates;
   /// throws InvalidInput("points") for a non-finite point.
   void readPoints(const Points& points, const BinSweep& sweep);
+  /// position_ and near_ray_ of every point (readPoints()).
+  void locatePoints(const Rays& rays);
   /// The scan's flat tolerance (from the median residual) and link_: surfaces where one of a joined pair is
   /// flat (on the line through its neighbours), kPending for the other neighbours, kNone for the rest.
   void classifyLinks();
@@ -138,8 +142,6 @@ class ScanRebinner {
                          double& corner_y) const;
   /// A kCorner link j -> q: the two segments through its corner.
   inline void crossCorner(const Points& points, std::size_t j, std::size_t q, const BinSweep& sweep);
-  /// The rays for running bin positions (defined in rebin.cpp: locate() there).
-  struct Rays;
   Rays rays(double abs_increment) const;
   /// A segment's end: a point at running bin position `ray`, with side() of that ray and the next.
   struct RayPoint {
@@ -186,6 +188,10 @@ class ScanRebinner {
   bool running_ = false;
   std::size_t ray_count_ = 0;
   double direction_ = 1.0;                   // the sign of angle_increment
+  // locatePoints() in float: whether, the grid's first ray's angle [rad] in [0, 2pi), 1 / |increment|,
+  // the guard band [bins] about each ray, the last position [bins] not near the first ray.
+  bool float_positions_ = false;
+  float bearing_origin_ = 0.0f, bins_per_radian_ = 0.0f, position_guard_ = 0.0f, last_sure_bin_ = 0.0f;
   std::vector<double> ray_cos_, ray_sin_;    // unit ray direction of every ray (and kRayPadding copies)
   std::vector<double> side_cos_, side_sin_;  // the same times direction_ (for Rays::side())
   std::vector<double> best_range_;           // [m] nearest crossing per bin so far (+inf between scans)
@@ -197,14 +203,14 @@ class ScanRebinner {
   std::vector<double> x_, y_, scale_;      // [m] the corrected point, max(|x|, |y|)
   std::vector<double> cross_, length2_;    // [m^2] its distance from its neighbours' line as |cross| /
                                            // sqrt(length2); cross infinite: no such line
+  std::vector<double> join_margin_;        // [m^2] how far within the gap from max(|x|, |y|) of its next
   std::vector<std::int32_t> position_;     // its running bin position (negative: not found)
+  std::vector<unsigned char> near_ray_;    // the position found by side() (near a ray): onRay() may hold
   std::vector<unsigned char> has_next_;    // j's next point is its neighbour (beam index + 1, or the wrap)
   std::vector<unsigned char> joined_;      // j and its next are close enough for one contour
   std::vector<unsigned char> flat_;        // j lies on the line through its two joined neighbours
   std::vector<std::uint32_t> candidates_;  // [candidate_begin_, candidate_end_): points whose residual
   std::size_t candidate_begin_ = 0, candidate_end_ = 0;  // estimates the noise (both links joined)
-  std::vector<std::uint32_t> pending_;  // the first pending_count_: links classifyRareLinks() decides
-  std::size_t pending_count_ = 0;
   std::vector<Link> link_;                   // what joins j and its next
   std::vector<double> corner_x_, corner_y_;  // [m] the corner of a kCorner link
   std::vector<double> noise_sample_;         // [m] scratch for the noise estimate
