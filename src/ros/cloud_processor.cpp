@@ -199,20 +199,49 @@ void writeReturns(const Coordinates& xyz, std::uint32_t time_offset, double time
   }
 }
 
-/// Scales returns [begin, end)'s `range` field (of type T, any unit, at `range_offset` in `data`, the
-/// output's) by the ratio of the corrected position's distance from the sensor to the raw one's: the
-/// range of the corrected point, in the driver's unit and from the driver's own origin (Ouster's beam
-/// origin lies a few cm from the sensor frame's: a still sensor's ranges stay as they were). Integers are
-/// rounded; values kept within their type; a value that is not finite, or would not be, is left as it was.
-template <typename T>
-void scaleRanges(std::uint32_t range_offset, const std::uint32_t* byte_offsets, const Eigen::Vector3d* raw,
-                 const Eigen::Vector3d* corrected, std::size_t begin, std::size_t end, std::uint8_t* data) {
-  for (std::size_t k = begin; k < end; ++k) {
-    std::uint8_t* const at = data + byte_offsets[k] + range_offset;
-    const double scaled = static_cast<double>(load<T>(at)) * corrected[k].norm() / raw[k].norm();
+/// Writes returns [begin, end)'s corrected positions (x y z of type T) at their byte offsets in `data`
+/// (the output's), and scales their `range` field (of type R, any unit, at `range_offset`) by the ratio
+/// of the corrected position's distance from the sensor to the raw one's: the range of the corrected
+/// point, in the driver's unit and from the driver's own origin (Ouster's beam origin lies a few cm from
+/// the sensor frame's: a still sensor's ranges stay as they were). Integers are rounded; values kept
+/// within their type; a value that is not finite, or would not be, is left as it was.
+template <typename T, typename R>
+void writeReturnsAndRanges(const Coordinates& xyz, std::uint32_t range_offset, const std::uint32_t* byte_offsets,
+                           const Eigen::Vector3d* raw, const Eigen::Vector3d* corrected, std::size_t begin,
+                           std::size_t end, std::uint8_t* data) {
+  const std::uint32_t x = xyz.x.offset, y = xyz.y.offset, z = xyz.z.offset;
+  const auto write = [&](std::size_t k, double scaled) {
+    std::uint8_t* const point = data + byte_offsets[k];
+    store(point + x, static_cast<T>(corrected[k].x()));
+    store(point + y, static_cast<T>(corrected[k].y()));
+    store(point + z, static_cast<T>(corrected[k].z()));
     if (std::isfinite(scaled))  // (a non-finite value, or a non-finite correction: left as it was)
-      store(at, toFieldValue<T>(scaled));
+      store(point + range_offset, toFieldValue<R>(scaled));
+  };
+  const auto value = [&](std::size_t k) { return static_cast<double>(load<R>(data + byte_offsets[k] + range_offset)); };
+  // value * |corrected| / |raw| (norm() is the square root of squaredNorm()), two returns at a time:
+  // their square roots and quotients in packets (Eigen's, IEEE's as std::sqrt's). Three scalar roots and
+  // divisions per return bounded the loop; the writes take the time they leave.
+  std::size_t k = begin;
+  for (; k + 1 < end; k += 2) {
+    const Eigen::Array2d values(value(k), value(k + 1));
+    const Eigen::Array2d corrected_squared(corrected[k].squaredNorm(), corrected[k + 1].squaredNorm());
+    const Eigen::Array2d raw_squared(raw[k].squaredNorm(), raw[k + 1].squaredNorm());
+    const Eigen::Array2d scaled = values * corrected_squared.sqrt() / raw_squared.sqrt();
+    write(k, scaled[0]);
+    write(k + 1, scaled[1]);
   }
+  if (k < end)
+    write(k, value(k) * corrected[k].norm() / raw[k].norm());
+}
+
+/// Writes `time_value` into the time field (of type TimeType, at `time_offset`) of returns [begin, end).
+template <typename TimeType>
+void writeTimes(std::uint32_t time_offset, double time_value, const std::uint32_t* byte_offsets,
+                std::size_t begin, std::size_t end, std::uint8_t* data) {
+  const auto typed = static_cast<TimeType>(time_value);
+  for (std::size_t k = begin; k < end; ++k)
+    store(data + byte_offsets[k] + time_offset, typed);
 }
 
 /// Times the returns of a cloud without a time field from their azimuth (azimuth_timing): each one's
@@ -362,21 +391,27 @@ CloudOutputs CloudProcessor::correct(const PreparedCloud& prepared, const mrpt::
     const std::size_t end = std::min(begin + kBlock, corrected_.size());
     xyz.withType([&](auto coordinate) {
       using T = decltype(coordinate);
-      if (prepared.byAzimuth()) {  // no field to rewrite
-        writeReturns<T, void>(xyz, 0, 0.0, byte_offsets, corrected, begin, end, data);
+      if (range == nullptr) {
+        if (prepared.byAzimuth()) {  // no field to rewrite
+          writeReturns<T, void>(xyz, 0, 0.0, byte_offsets, corrected, begin, end, data);
+          return;
+        }
+        withFieldType(time.datatype, [&](auto typed) {
+          writeReturns<T, decltype(typed)>(xyz, time.offset, time_value, byte_offsets, corrected, begin, end,
+                                           data);
+        });
         return;
       }
-      withFieldType(time.datatype, [&](auto typed) {
-        writeReturns<T, decltype(typed)>(xyz, time.offset, time_value, byte_offsets, corrected, begin, end,
-                                         data);
-      });
-    });
-    if (range != nullptr) {
       withFieldType(range->datatype, [&](auto typed) {
-        scaleRanges<decltype(typed)>(range->offset, byte_offsets, prepared.points.data(), corrected, begin,
-                                     end, data);
+        writeReturnsAndRanges<T, decltype(typed)>(xyz, range->offset, byte_offsets, prepared.points.data(),
+                                                  corrected, begin, end, data);
       });
-    }
+      if (!prepared.byAzimuth()) {
+        withFieldType(time.datatype, [&](auto typed) {
+          writeTimes<decltype(typed)>(time.offset, time_value, byte_offsets, begin, end, data);
+        });
+      }
+    });
   }
   CloudOutputs outputs;
   outputs.cloud = output;
