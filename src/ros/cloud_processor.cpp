@@ -120,19 +120,26 @@ class FiringGrouper {
   /// `columns`: the organized cloud's width; 0 for a dense cloud.
   explicit FiringGrouper(std::size_t columns) : of_column_(columns, kNoFiring) {}
 
+  /// The return read before, in a sequence of calls: a local of the caller's, so that it stays in
+  /// registers across a loop that stores points.
+  struct Last {
+    std::uint32_t firing = kNoFiring;
+    double value = 0.0;
+  };
+
   /// The firing of a return of time value `value` in column `column`.
-  std::uint32_t firingOf(double value, std::uint32_t column) {
-    if (value == last_value_ && last_ != kNoFiring)
-      return last_;
+  std::uint32_t firingOf(double value, std::uint32_t column, Last& last) {
+    if (value == last.value && last.firing != kNoFiring)
+      return last.firing;
     std::uint32_t firing = of_column_.empty() ? kNoFiring : of_column_[column];
     if (firing == kNoFiring || values_[firing] != value) {
       firing = static_cast<std::uint32_t>(values_.size());
       values_.push_back(value);
+      if (!of_column_.empty())
+        of_column_[column] = firing;
     }
-    if (!of_column_.empty())
-      of_column_[column] = firing;
-    last_ = firing;
-    last_value_ = value;
+    last.firing = firing;
+    last.value = value;
     return firing;
   }
   /// The value of each firing.
@@ -141,9 +148,20 @@ class FiringGrouper {
  private:
   std::vector<std::uint32_t> of_column_;
   std::vector<double> values_;
-  std::uint32_t last_ = kNoFiring;
-  double last_value_ = 0.0;
 };
+
+/// A return: finite coordinates, not all zero (range 0 is "no return" for Ouster and others). Floats in
+/// one test of their squared norm in double, which no float overflows and none but zero makes 0 (NaN
+/// fails both comparisons).
+inline bool isReturn(float x, float y, float z) {
+  const double dx = x, dy = y, dz = z;
+  const double squared = (dx * dx + dy * dy) + dz * dz;
+  return squared > 0.0 && squared <= std::numeric_limits<double>::max();
+}
+inline bool isReturn(double x, double y, double z) {
+  const Eigen::Vector3d p(x, y, z);
+  return p.allFinite() && !p.isZero(0.0);
+}
 
 /// Reads the returns of `cloud` (finite coordinates of type T, not exactly the origin: range 0 is "no
 /// return" for Ouster and others) in the cloud's order into `prepared` (points, byte offsets and, by
@@ -161,19 +179,23 @@ void readReturns(const sensor_msgs::PointCloud2& cloud, const Coordinates& xyz, 
   std::uint32_t* const byte_offsets = prepared.byte_offsets.data();
   std::uint32_t* const firings = prepared.firings.of_point.data();
   std::size_t returns = 0;
+  FiringGrouper::Last last;
   // (rows of no point are not walked: a width of 0 may come with any height, and row_step 0)
-  const std::uint32_t rows = cloud.width == 0 ? 0 : cloud.height;
+  // (the layout in locals: the stores below may alias the message's uint32 members for the compiler)
+  const std::uint32_t width = cloud.width, row_step = cloud.row_step, point_step = cloud.point_step;
+  const std::uint32_t rows = width == 0 ? 0 : cloud.height;
   for (std::uint32_t row = 0; row < rows; ++row) {
-    for (std::uint32_t column = 0; column < cloud.width; ++column) {
-      const auto at = static_cast<std::uint32_t>(row * cloud.row_step + column * cloud.point_step);
+    for (std::uint32_t column = 0; column < width; ++column) {
+      const auto at = static_cast<std::uint32_t>(row * row_step + column * point_step);
       const std::uint8_t* const point = data + at;
-      const Eigen::Vector3d p(load<T>(point + x), load<T>(point + y), load<T>(point + z));
-      if (!p.allFinite() || p.isZero(0.0))
+      const T px = load<T>(point + x), py = load<T>(point + y), pz = load<T>(point + z);
+      if (!isReturn(px, py, pz))
         continue;
-      points[returns] = p;
+      points[returns] = Eigen::Vector3d(px, py, pz);
       byte_offsets[returns] = at;
       if constexpr (!std::is_void_v<TimeType>)
-        firings[returns] = grouper.firingOf(static_cast<double>(load<TimeType>(point + time_offset)), column);
+        firings[returns] =
+            grouper.firingOf(static_cast<double>(load<TimeType>(point + time_offset)), column, last);
       ++returns;
     }
   }
@@ -199,20 +221,49 @@ void writeReturns(const Coordinates& xyz, std::uint32_t time_offset, double time
   }
 }
 
-/// Scales returns [begin, end)'s `range` field (of type T, any unit, at `range_offset` in `data`, the
-/// output's) by the ratio of the corrected position's distance from the sensor to the raw one's: the
-/// range of the corrected point, in the driver's unit and from the driver's own origin (Ouster's beam
-/// origin lies a few cm from the sensor frame's: a still sensor's ranges stay as they were). Integers are
-/// rounded; values kept within their type; a value that is not finite, or would not be, is left as it was.
-template <typename T>
-void scaleRanges(std::uint32_t range_offset, const std::uint32_t* byte_offsets, const Eigen::Vector3d* raw,
-                 const Eigen::Vector3d* corrected, std::size_t begin, std::size_t end, std::uint8_t* data) {
-  for (std::size_t k = begin; k < end; ++k) {
-    std::uint8_t* const at = data + byte_offsets[k] + range_offset;
-    const double scaled = static_cast<double>(load<T>(at)) * corrected[k].norm() / raw[k].norm();
+/// Writes returns [begin, end)'s corrected positions (x y z of type T) at their byte offsets in `data`
+/// (the output's), and scales their `range` field (of type R, any unit, at `range_offset`) by the ratio
+/// of the corrected position's distance from the sensor to the raw one's: the range of the corrected
+/// point, in the driver's unit and from the driver's own origin (Ouster's beam origin lies a few cm from
+/// the sensor frame's: a still sensor's ranges stay as they were). Integers are rounded; values kept
+/// within their type; a value that is not finite, or would not be, is left as it was.
+template <typename T, typename R>
+void writeReturnsAndRanges(const Coordinates& xyz, std::uint32_t range_offset, const std::uint32_t* byte_offsets,
+                           const Eigen::Vector3d* raw, const Eigen::Vector3d* corrected, std::size_t begin,
+                           std::size_t end, std::uint8_t* data) {
+  const std::uint32_t x = xyz.x.offset, y = xyz.y.offset, z = xyz.z.offset;
+  const auto write = [&](std::size_t k, double scaled) {
+    std::uint8_t* const point = data + byte_offsets[k];
+    store(point + x, static_cast<T>(corrected[k].x()));
+    store(point + y, static_cast<T>(corrected[k].y()));
+    store(point + z, static_cast<T>(corrected[k].z()));
     if (std::isfinite(scaled))  // (a non-finite value, or a non-finite correction: left as it was)
-      store(at, toFieldValue<T>(scaled));
+      store(point + range_offset, toFieldValue<R>(scaled));
+  };
+  const auto value = [&](std::size_t k) { return static_cast<double>(load<R>(data + byte_offsets[k] + range_offset)); };
+  // value * |corrected| / |raw| (norm() is the square root of squaredNorm()), two returns at a time:
+  // their square roots and quotients in packets (Eigen's, IEEE's as std::sqrt's). Three scalar roots and
+  // divisions per return bounded the loop; the writes take the time they leave.
+  std::size_t k = begin;
+  for (; k + 1 < end; k += 2) {
+    const Eigen::Array2d values(value(k), value(k + 1));
+    const Eigen::Array2d corrected_squared(corrected[k].squaredNorm(), corrected[k + 1].squaredNorm());
+    const Eigen::Array2d raw_squared(raw[k].squaredNorm(), raw[k + 1].squaredNorm());
+    const Eigen::Array2d scaled = values * corrected_squared.sqrt() / raw_squared.sqrt();
+    write(k, scaled[0]);
+    write(k + 1, scaled[1]);
   }
+  if (k < end)
+    write(k, value(k) * corrected[k].norm() / raw[k].norm());
+}
+
+/// Writes `time_value` into the time field (of type TimeType, at `time_offset`) of returns [begin, end).
+template <typename TimeType>
+void writeTimes(std::uint32_t time_offset, double time_value, const std::uint32_t* byte_offsets,
+                std::size_t begin, std::size_t end, std::uint8_t* data) {
+  const auto typed = static_cast<TimeType>(time_value);
+  for (std::size_t k = begin; k < end; ++k)
+    store(data + byte_offsets[k] + time_offset, typed);
 }
 
 /// Times the returns of a cloud without a time field from their azimuth (azimuth_timing): each one's
@@ -244,8 +295,9 @@ void timeByAzimuth(const AzimuthTiming& timing, PreparedCloud& prepared, FiringG
       offsets[i] = by_column_offsets[entries[i]];
   }
   prepared.firings.of_point.resize(returns);
+  FiringGrouper::Last last;
   for (std::size_t i = 0; i < returns; ++i)
-    prepared.firings.of_point[i] = grouper.firingOf(offsets[i], columns[i]);
+    prepared.firings.of_point[i] = grouper.firingOf(offsets[i], columns[i], last);
   prepared.time_field.datatype = PointField::FLOAT64;  // name "": no field to rewrite
 }
 
@@ -362,21 +414,27 @@ CloudOutputs CloudProcessor::correct(const PreparedCloud& prepared, const mrpt::
     const std::size_t end = std::min(begin + kBlock, corrected_.size());
     xyz.withType([&](auto coordinate) {
       using T = decltype(coordinate);
-      if (prepared.byAzimuth()) {  // no field to rewrite
-        writeReturns<T, void>(xyz, 0, 0.0, byte_offsets, corrected, begin, end, data);
+      if (range == nullptr) {
+        if (prepared.byAzimuth()) {  // no field to rewrite
+          writeReturns<T, void>(xyz, 0, 0.0, byte_offsets, corrected, begin, end, data);
+          return;
+        }
+        withFieldType(time.datatype, [&](auto typed) {
+          writeReturns<T, decltype(typed)>(xyz, time.offset, time_value, byte_offsets, corrected, begin, end,
+                                           data);
+        });
         return;
       }
-      withFieldType(time.datatype, [&](auto typed) {
-        writeReturns<T, decltype(typed)>(xyz, time.offset, time_value, byte_offsets, corrected, begin, end,
-                                         data);
-      });
-    });
-    if (range != nullptr) {
       withFieldType(range->datatype, [&](auto typed) {
-        scaleRanges<decltype(typed)>(range->offset, byte_offsets, prepared.points.data(), corrected, begin,
-                                     end, data);
+        writeReturnsAndRanges<T, decltype(typed)>(xyz, range->offset, byte_offsets, prepared.points.data(),
+                                                  corrected, begin, end, data);
       });
-    }
+      if (!prepared.byAzimuth()) {
+        withFieldType(time.datatype, [&](auto typed) {
+          writeTimes<decltype(typed)>(time.offset, time_value, byte_offsets, begin, end, data);
+        });
+      }
+    });
   }
   CloudOutputs outputs;
   outputs.cloud = output;

@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstring>
 #include <functional>
@@ -352,6 +353,46 @@ TEST(CloudPipeline, OverlappingFieldsAreRefused) {
     } catch (const core::InvalidInput& error) {
       EXPECT_EQ(error.field(), "fields");
     }
+  }
+}
+
+// Returns are the points with finite coordinates, not all zero (Eigen's allFinite and isZero, the test
+// before float clouds were tested on their squared norm in double): NaN or an infinity in any one
+// coordinate, +-0 everywhere are not; the smallest subnormal and the largest floats are.
+TEST(CloudPipeline, ReturnsAreFiniteAndNotAllZeroToTheLastFloat) {
+  constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
+  constexpr float kInf = std::numeric_limits<float>::infinity();
+  constexpr float kTiny = std::numeric_limits<float>::denorm_min();
+  constexpr float kMax = std::numeric_limits<float>::max();
+  const std::vector<std::array<float, 3>> coordinates = {
+      {kNaN, 1, 1},  {kInf, 0, 0},   {0, 0, 0},    {-0.0f, 0, -0.0f}, {kTiny, 0, 0}, {kMax, kMax, kMax},
+      {1, -kInf, 1}, {0, 0, 1e-30f}, {-kMax, 0, 0}, {5, 0, 0},        {0, kNaN, 0}, {0, -kTiny, 0}};
+  sensor_msgs::LaserScan scan;
+  scan.header.frame_id = "laser";
+  scan.header.stamp = ros::Time(100.0);
+  scan.angle_increment = 0.01f;
+  scan.angle_max = 0.01f * static_cast<float>(coordinates.size() - 1);
+  scan.time_increment = 1e-4f;
+  scan.scan_time = 0.1f;
+  scan.range_max = 30.0f;
+  scan.ranges.assign(coordinates.size(), 5.0f);
+  const auto cloud = cloudOf(scan, Layout::kVelodyneLast);
+  ASSERT_EQ(cloud->width * cloud->height, coordinates.size());
+  std::vector<std::uint32_t> expected;
+  for (std::size_t i = 0; i < coordinates.size(); ++i) {
+    std::memcpy(&cloud->data[i * cloud->point_step], coordinates[i].data(), 3 * sizeof(float));
+    const Eigen::Vector3d point(coordinates[i][0], coordinates[i][1], coordinates[i][2]);
+    if (point.allFinite() && !point.isZero(0.0))
+      expected.push_back(static_cast<std::uint32_t>(i * cloud->point_step));
+  }
+  ASSERT_EQ(expected.size(), 6u);
+  ros_adapter::CloudProcessor processor{ros_adapter::DeskewParams()};
+  const ros_adapter::PreparedCloud prepared = processor.prepare(cloud);
+  EXPECT_EQ(prepared.byte_offsets, expected);
+  ASSERT_EQ(prepared.points.size(), expected.size());
+  for (std::size_t k = 0; k < expected.size(); ++k) {
+    const std::array<float, 3>& raw = coordinates[expected[k] / cloud->point_step];
+    EXPECT_EQ(prepared.points[k], Eigen::Vector3d(raw[0], raw[1], raw[2])) << k;
   }
 }
 
