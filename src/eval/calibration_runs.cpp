@@ -5,6 +5,8 @@
 #include <limits>
 #include <random>
 
+#include <unistd.h>
+
 #include "lidar_deskew/eval/evaluate.h"
 #include "lidar_deskew/sim/sim_bag.h"
 
@@ -109,7 +111,9 @@ std::vector<CalibrationCase> coverageCases(std::size_t count, unsigned seed) {
 
 CalibrationRun runCalibrationCase(const CalibrationCase& recording, const std::string& directory,
                                   bool score_it, const core::TimingFitConfig& fit) {
-  const std::string stem = directory + "/calibration_" + std::to_string(recording.seed);
+  // The process id in the name: test shards and experiment runs side by side never share a file.
+  const std::string stem =
+      directory + "/calibration_" + std::to_string(::getpid()) + "_" + std::to_string(recording.seed);
   const std::string bag_path = stem + ".bag", truth_path = stem + ".truth";
   sim::SimBagOptions options;
   options.noise = true;

@@ -17,6 +17,7 @@
 #include <map>
 
 #include "lidar_deskew/sim/cloud_bag.h"
+#include "support/temporary.h"
 
 namespace lidar_deskew::sim {
 namespace {
@@ -197,8 +198,8 @@ TEST_P(CloudBagTest, ReadsBackAsTheDriverWroteIt) {
   CloudBagOptions options;
   options.convention = convention;
   options.duration = 0.3;  // 3 sweeps
-  const std::string bag_path = ::testing::TempDir() + "/cloud_" + name + ".bag";
-  const std::string truth_path = ::testing::TempDir() + "/cloud_" + name + ".truth";
+  const std::string bag_path = test::temporary("cloud", name + ".bag");
+  const std::string truth_path = test::temporary("cloud", name + ".truth");
   writeCloudBag(scenario, options, bag_path, truth_path);
   const RecordedBag recorded = readBag(bag_path);
   const core::TimeNs epoch = options.epoch;
@@ -411,8 +412,8 @@ TEST(CloudBag, TwentyOs1SweepsAreQuickToWrite) {
   CloudBagOptions options;
   options.duration = 2.0;
   options.noise = true;
-  const std::string bag_path = ::testing::TempDir() + "/cloud_speed.bag";
-  const std::string truth_path = ::testing::TempDir() + "/cloud_speed.truth";
+  const std::string bag_path = test::temporary("cloud", "speed.bag");
+  const std::string truth_path = test::temporary("cloud", "speed.truth");
   const auto begin = std::chrono::steady_clock::now();
   writeCloudBag(findCloudScenario("OS1-64/normal/arc"), options, bag_path, truth_path);
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - begin).count();
@@ -457,7 +458,7 @@ CloudOdometryBag writeCloudOdometryBag(double noise, const OdometryTiming& timin
   result.options.odom_noise = noise;
   result.options.odom_noise_seed = seed;
   result.options.odom_timing = timing;
-  const std::string stem = ::testing::TempDir() + "/cloud_odom_" + label;
+  const std::string stem = test::temporary("cloud_odom", label);
   writeCloudBag(result.scenario, result.options, stem + ".bag", stem + ".truth");
   result.recorded = readBag(stem + ".bag");
   result.truth = readCloudTruth(stem + ".truth");
@@ -526,7 +527,7 @@ TEST(CloudBagOdometry, TfMargin) {
   CloudBagOptions options;
   options.duration = 0.1;
   options.tf_margin = 1.0;
-  const std::string stem = ::testing::TempDir() + "/cloud_odom_margin";
+  const std::string stem = test::temporary("cloud_odom", "margin");
   writeCloudBag(findCloudScenario("VLP16/normal/arc"), options, stem + ".bag", stem + ".truth");
   const RecordedBag recorded = readBag(stem + ".bag");
   std::remove((stem + ".bag").c_str());
@@ -677,7 +678,7 @@ TEST(CloudBagOdometry, EverythingAtOnce) {
   EXPECT_EQ(first.truth.odom_timing.wheel_base, 0.235);
   CloudBagOptions options;
   options.tf_margin = -0.1;
-  const std::string bag_path = ::testing::TempDir() + "/cloud_odom_invalid.bag";
+  const std::string bag_path = test::temporary("cloud_odom", "invalid.bag");
   EXPECT_THROW(writeCloudBag(first.scenario, options, bag_path, bag_path + ".truth"), std::invalid_argument);
   options = CloudBagOptions();
   options.odom_timing.tick = 0.001;  // without a wheel base

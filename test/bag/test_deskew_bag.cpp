@@ -10,7 +10,6 @@
 
 #include <signal.h>
 #include <sys/wait.h>
-#include <unistd.h>
 
 #include <cstdio>
 #include <deque>
@@ -26,6 +25,7 @@
 #include "lidar_deskew/ros/conversions.h"
 #include "lidar_deskew/sim/sim_bag.h"
 #include "support/tf_tree.h"
+#include "support/temporary.h"
 
 namespace lidar_deskew::bag {
 namespace {
@@ -36,9 +36,7 @@ using sim::writeSimulationBag;
 
 const std::string kNeatoBag = std::string(LIDAR_DESKEW_SOURCE_DIR) + "/data/neato_xv11/test_drive.bag";
 
-std::string temporary(const std::string& name) {
-  return ::testing::TempDir() + "/deskew_bag_" + std::to_string(::getpid()) + "_" + name;
-}
+std::string temporary(const std::string& name) { return test::temporary("deskew_bag", name); }
 
 std::map<std::string, std::size_t> topicCounts(const std::string& path) {
   rosbag::Bag bag(path, rosbag::bagmode::Read);

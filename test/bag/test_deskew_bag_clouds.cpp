@@ -21,6 +21,7 @@
 #include "lidar_deskew/ros/conversions.h"
 #include "lidar_deskew/sim/cloud_bag.h"
 #include "lidar_deskew/sim/cloud_scenario.h"
+#include "support/temporary.h"
 
 namespace lidar_deskew::test {
 namespace {
@@ -73,8 +74,8 @@ double rmsOf(const std::vector<sensor_msgs::PointCloud2::ConstPtr>& clouds, cons
 Scores run(const std::string& scenario_name, CloudConvention convention, bool noise,
            const ros_adapter::DeskewParams& params = {}) {
   const std::string name = sim::cloudConventionName(convention);
-  const std::string dir = ::testing::TempDir();
-  const std::string in = dir + "/clouds_" + name + ".bag", truth_path = dir + "/clouds_" + name + ".truth";
+  const std::string dir = test::temporary("clouds", "");
+  const std::string in = dir + name + ".bag", truth_path = dir + name + ".truth";
   sim::CloudBagOptions options;
   options.convention = convention;
   options.noise = noise;
@@ -87,7 +88,7 @@ Scores run(const std::string& scenario_name, CloudConvention convention, bool no
   for (bool exact : {false, true}) {
     bag::BagDeskewOptions deskew;
     deskew.input = in;
-    deskew.output = dir + "/clouds_" + name + (exact ? "_exact" : "") + "_out.bag";
+    deskew.output = dir + name + (exact ? "_exact" : "") + "_out.bag";
     deskew.cloud_topics = {"/points"};  // nothing else: the time field is found alone
     deskew.params = params;
     deskew.params.exact = exact;
@@ -166,15 +167,15 @@ TEST(DeskewBagClouds, RoughGroundWithNoise) {
 // first point): dropped, naming the fields, unless azimuth_timing is set; with it, as exact as the
 // clouds with times.
 TEST(DeskewBagClouds, NoTimeFieldWithAzimuthTiming) {
-  const std::string dir = ::testing::TempDir();
-  const std::string in = dir + "/clouds_no_time.bag", truth_path = dir + "/clouds_no_time.truth";
+  const std::string dir = test::temporary("clouds", "");
+  const std::string in = dir + "no_time.bag", truth_path = dir + "no_time.truth";
   sim::CloudBagOptions options;
   options.convention = CloudConvention::kNoTime;
   options.duration = 0.5;
   writeCloudBag(sim::findCloudScenario("VLP16/high/arc"), options, in, truth_path);
   bag::BagDeskewOptions deskew;
   deskew.input = in;
-  deskew.output = dir + "/clouds_no_time_out.bag";
+  deskew.output = dir + "no_time_out.bag";
   deskew.cloud_topics = {"/points"};
   const ros_adapter::PipelineCounters counters = bag::deskewBag(deskew).counters.at("/points");
   EXPECT_GE(counters.received, 4u);
@@ -201,8 +202,8 @@ TEST(DeskewBagClouds, NoTimeFieldWithAzimuthTiming) {
 // With cloud_scan: the corrected points of the height band as a planar LaserScan (for gmapping/AMCL),
 // each finite bin's endpoint on a true surface (the points' own z left out: a 2 deg tilted mount).
 TEST(DeskewBagClouds, PlanarScanOfTheCorrectedPoints) {
-  const std::string dir = ::testing::TempDir();
-  const std::string in = dir + "/clouds_scan.bag", truth_path = dir + "/clouds_scan.truth";
+  const std::string dir = test::temporary("clouds", "");
+  const std::string in = dir + "scan.bag", truth_path = dir + "scan.truth";
   sim::CloudBagOptions options;
   options.convention = CloudConvention::kVelodyneFirst;
   options.duration = 0.5;
@@ -211,7 +212,7 @@ TEST(DeskewBagClouds, PlanarScanOfTheCorrectedPoints) {
   const sim::World3 world = sim::World3::byName(truth.world);
   bag::BagDeskewOptions deskew;
   deskew.input = in;
-  deskew.output = dir + "/clouds_scan_out.bag";
+  deskew.output = dir + "scan_out.bag";
   deskew.cloud_topics = {"/points"};
   deskew.params.cloud_scan.enabled = true;
   bag::deskewBag(deskew);

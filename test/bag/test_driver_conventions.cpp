@@ -19,6 +19,7 @@
 #include "lidar_deskew/ros/conversions.h"
 #include "lidar_deskew/sim/drivers.h"
 #include "lidar_deskew/sim/sim_bag.h"
+#include "support/temporary.h"
 
 namespace lidar_deskew::sim {
 namespace {
@@ -107,7 +108,7 @@ TEST_P(DriverConventions, MessagesAsTheDriverWritesThemAndCalibrateFindsTheConve
   SimBagOptions options;
   options.noise = true;
   options.timing_fault = driverTiming(expected.driver, scenario.lidar);
-  const std::string stem = testing::TempDir() + "/driver_" + name;
+  const std::string stem = test::temporary("driver", name);
   writeSimulationBag(scenario, options, stem + ".bag", stem + ".truth");
   const Truth truth = readTruth(stem + ".truth");
   const double period = 1.0 / scenario.lidar.rate;

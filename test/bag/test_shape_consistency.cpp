@@ -2,7 +2,6 @@
 // with known timing faults and odometry: the simulator's truth says which correction is right and
 // how far tf's rotation is off (docs/CALIBRATION.md, "Shapes"). No roscore.
 #include <gtest/gtest.h>
-#include <unistd.h>
 
 #include <array>
 #include <cstdio>
@@ -11,13 +10,12 @@
 
 #include "lidar_deskew/eval/shape_consistency.h"
 #include "lidar_deskew/sim/sim_bag.h"
+#include "support/temporary.h"
 
 namespace lidar_deskew::eval {
 namespace {
 
-std::string temporary(const std::string& name) {
-  return ::testing::TempDir() + "/shape_consistency_" + std::to_string(::getpid()) + "_" + name;
-}
+std::string temporary(const std::string& name) { return test::temporary("shape_consistency", name); }
 
 /// The LDS-01 turns drive (5 Hz, 360 beams, σ 15 mm; turn rate changing every 1-2 s) with range noise.
 struct SimulatedBag {

@@ -14,6 +14,7 @@
 #include <cstdio>
 
 #include "lidar_deskew/sim/sim_bag.h"
+#include "support/temporary.h"
 
 namespace lidar_deskew::sim {
 namespace {
@@ -72,8 +73,8 @@ void checkFaultedBag(Scenario scenario, const TimingFault& fault, const std::str
   scenario.duration = 1.0;
   SimBagOptions options;
   options.timing_fault = fault;
-  const std::string bag_path = ::testing::TempDir() + "/sim_" + label + ".bag";
-  const std::string truth_path = ::testing::TempDir() + "/sim_" + label + ".truth";
+  const std::string bag_path = test::temporary("sim", label + ".bag");
+  const std::string truth_path = test::temporary("sim", label + ".truth");
   writeSimulationBag(scenario, options, bag_path, truth_path);
   const Recorded recorded = readBag(bag_path);
   // /tf_static once, latched as rosbag record notes it (rosbag play then latches it).
@@ -182,7 +183,7 @@ TEST(SimBag, NoPeriodAtAll) {
 // factors, and drift away from the truth; the truth file keeps the true motion and records the noise.
 TEST(SimBag, OdometryNoise) {
   const Scenario scenario = findScenario("LDS-01/normal/arc");
-  const std::string stem = ::testing::TempDir() + "/sim_odometry";
+  const std::string stem = test::temporary("sim", "odometry");
   SimBagOptions options;
   options.noise = true;
   options.seed = 5;
@@ -244,7 +245,7 @@ TEST(SimBag, OdometryNoise) {
 TEST(SimBag, InvalidOptionsAreRefused) {
   SimBagOptions options;
   options.timing_fault.time_increment_factor = -1.0;
-  const std::string bag_path = ::testing::TempDir() + "/sim_invalid.bag";
+  const std::string bag_path = test::temporary("sim", "invalid.bag");
   EXPECT_THROW(
       writeSimulationBag(findScenario("LDS-01/normal/turns"), options, bag_path, bag_path + ".truth"),
       std::invalid_argument);
@@ -277,7 +278,7 @@ OdometryBag writeOdometryBag(const OdometryTiming& timing, const std::string& la
   result.scenario.duration = duration;
   result.options.odom_timing = timing;
   result.options.odom_noise_seed = seed;
-  const std::string stem = ::testing::TempDir() + "/sim_odom_" + label;
+  const std::string stem = test::temporary("sim_odom", label);
   writeSimulationBag(result.scenario, result.options, stem + ".bag", stem + ".truth");
   result.recorded = readBag(stem + ".bag");
   result.truth = readTruth(stem + ".truth");
@@ -442,7 +443,7 @@ TEST(SimBagOdometry, SameSeedSameBag) {
 }
 
 TEST(SimBagOdometry, InvalidTimingIsRefused) {
-  const std::string bag_path = ::testing::TempDir() + "/sim_invalid_timing.bag";
+  const std::string bag_path = test::temporary("sim", "invalid_timing.bag");
   const auto refused = [&](const OdometryTiming& timing) {
     SimBagOptions options;
     options.odom_timing = timing;

@@ -7,6 +7,7 @@
 #include <fstream>
 
 #include "lidar_deskew/sim/scenario.h"
+#include "support/temporary.h"
 
 namespace lidar_deskew::sim {
 namespace {
@@ -175,7 +176,7 @@ TEST(Sim, TruthFileRoundTripsExactly) {
   truth.world = World::hall();
   truth.odom_noise = 0.1;
   truth.odom_noise_seed = 4'000'000'007u;
-  const std::string path = ::testing::TempDir() + "/roundtrip.truth";
+  const std::string path = test::temporary("sim", "roundtrip.truth");
   writeTruth(truth, path);
   const Truth read = readTruth(path);
   EXPECT_EQ(read.odom_noise, 0.1);

@@ -9,6 +9,7 @@
 #include <set>
 
 #include "lidar_deskew/sim/cloud_scenario.h"
+#include "support/temporary.h"
 
 namespace lidar_deskew::sim {
 namespace {
@@ -417,7 +418,7 @@ TEST(Sim3d, CloudTruthFileRoundTripsExactly) {
   truth.pieces = findCloudScenario("VLP16/varying/varying").pieces;
   truth.rough = RoughGround{0.01, 3.3, 0.02, 2.1, 0.03, 1.1};
   truth.sweep_start_times = scenario.sweepStartTimes();
-  const std::string path = ::testing::TempDir() + "/sim3d_truth.txt";
+  const std::string path = test::temporary("sim3d", "truth.txt");
   writeCloudTruth(truth, path);
   const CloudTruth read = readCloudTruth(path);
   EXPECT_EQ(read.scenario, truth.scenario);

@@ -12,6 +12,7 @@
 #include <set>
 
 #include "lidar_deskew/sim/scenario.h"
+#include "support/temporary.h"
 
 namespace lidar_deskew::sim {
 namespace {
@@ -208,7 +209,7 @@ TEST(SimFaults, TruthFileRoundTripsTheFault) {
   truth.beam_period = static_cast<double>(LidarModel::lds01().timeIncrement());
   truth.sweep_period = 0.2;
   EXPECT_EQ(truth.timeOffset(), -1.0 / 3.0);
-  const std::string path = ::testing::TempDir() + "/faults.truth";
+  const std::string path = test::temporary("sim_faults", "truth");
   writeTruth(truth, path);
   Truth read = readTruth(path);
   EXPECT_EQ(read.timing_fault.stamp_error, 1.0 / 3.0);

@@ -4,7 +4,6 @@
 // Recordings as scripts/cloud_experiments.sh makes them (1 s, 10 sweeps, tf at 50 Hz, seed 1), so the
 // printed numbers are the table's. Tolerances in mm.
 #include <gtest/gtest.h>
-#include <unistd.h>
 
 #include <cstdio>
 #include <string>
@@ -12,13 +11,14 @@
 #include "lidar_deskew/eval/cloud_evaluate.h"
 #include "lidar_deskew/sim/cloud_bag.h"
 #include "lidar_deskew/sim/cloud_scenario.h"
+#include "support/temporary.h"
 
 namespace lidar_deskew::eval {
 namespace {
 
 /// The OS1-64 in Ouster's layout, the VLP-16 in Velodyne's stamped at the last packet (as the script).
 CloudEvaluation simulateAndEvaluate(const std::string& scenario, bool noise) {
-  std::string stem = ::testing::TempDir() + "/cloud_floor_" + std::to_string(::getpid()) + "_";
+  std::string stem = test::temporary("cloud_floor", "");
   for (char c : scenario)
     stem += (c == '/' ? '_' : c);
   const std::string bag = stem + ".bag", truth = stem + ".truth";

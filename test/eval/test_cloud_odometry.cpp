@@ -4,7 +4,6 @@
 // odometry on the wheels' x, y and yaw (sim::CloudBagOptions). Short recordings, 3 sweeps each, with tf
 // 1 s before and after them: every sweep sees the fit's whole horizon, as in a long recording.
 #include <gtest/gtest.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <cstdio>
@@ -15,6 +14,7 @@
 #include "lidar_deskew/eval/cloud_evaluate.h"
 #include "lidar_deskew/sim/cloud_bag.h"
 #include "support/odometry_classes.h"
+#include "support/temporary.h"
 
 namespace lidar_deskew::eval {
 namespace {
@@ -31,7 +31,7 @@ void expectNeverWorseThanTfsLine(const char* name, double noise, const sim::Odom
   double linear_sum = 0.0, fit_sum = 0.0;
   int worse = 0;
   for (std::size_t k = 0; k < scenarios.size(); ++k) {
-    const std::string bag = ::testing::TempDir() + "/cloud_odometry_" + std::to_string(::getpid()) + ".bag";
+    const std::string bag = test::temporary("cloud_odometry", "bag");
     const std::string truth = bag + ".truth";
     sim::CloudBagOptions options;
     options.convention = scenarios[k].lidar.name == "OS1-64" ? sim::CloudConvention::kOuster

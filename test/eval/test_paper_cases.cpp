@@ -8,6 +8,7 @@
 #include "lidar_deskew/eval/evaluate.h"
 #include "lidar_deskew/sim/sim_bag.h"
 #include "support/odometry_classes.h"
+#include "support/temporary.h"
 
 namespace lidar_deskew::eval {
 namespace {
@@ -17,7 +18,7 @@ using test::odometryTiming;
 Evaluation simulateAndEvaluate(const std::string& scenario, bool noise, double tf_rate = 50.0,
                                bool clockwise = false,
                                core::Interpolation interpolation = core::Interpolation::kTwist) {
-  std::string stem = ::testing::TempDir() + "/paper_case_" + std::to_string(::getpid()) + "_";
+  std::string stem = test::temporary("paper_case", "");
   for (char c : scenario)
     stem += (c == '/' ? '_' : c);
   const std::string bag = stem + ".bag", truth = stem + ".truth";
@@ -54,7 +55,7 @@ void expectNeverWorseThanTfsLine(const char* name, double noise, const sim::Odom
   double linear_sum = 0.0, fit_sum = 0.0;
   int worse = 0;
   for (std::size_t k = 0; k < scenarios.size(); ++k) {
-    const std::string bag = ::testing::TempDir() + "/paper_case_odometry_" + std::to_string(::getpid()) + ".bag";
+    const std::string bag = test::temporary("paper_case_odometry", "bag");
     const std::string truth = bag + ".truth";
     sim::SimBagOptions options;
     options.noise = range_noise;
