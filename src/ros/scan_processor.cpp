@@ -1,6 +1,7 @@
 #include "lidar_deskew/ros/scan_processor.h"
 
 #include <algorithm>
+#include <cstring>
 #include <utility>
 
 #include <pcl_conversions/pcl_conversions.h>
@@ -32,7 +33,10 @@ boost::shared_ptr<DeskewedCloud> toCloud(const core::DeskewedScan& corrected, co
   // for an empty cloud (undefined behaviour found by fuzz_messages).
   cloud->points.reserve(std::max<std::size_t>(1, corrected.points.size()));
   for (const core::DeskewedPoint& point : corrected.points) {
+    // Every byte defined, the padding too (data[3] and the 4 bytes after index are serialised as they
+    // are): the same scan gives the same message bytes, run after run.
     PointXYZITI out;
+    std::memset(static_cast<void*>(&out), 0, sizeof out);
     out.x = static_cast<float>(point.position.x());
     out.y = static_cast<float>(point.position.y());
     out.z = static_cast<float>(point.position.z());
