@@ -8,6 +8,10 @@
 #include <limits>
 #include <type_traits>
 
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
 #include "lidar_deskew/ros/cloud_azimuth.h"
 #include "lidar_deskew/ros/conversions.h"
 #include "lidar_deskew/ros/scan_processor.h"
@@ -51,6 +55,17 @@ struct Coordinates {
       visit(float{});
     else
       visit(double{});
+  }
+  /// Calls visit(T{}, std::bool_constant<y follows x>{}): their C++ type, and whether y lies right
+  /// after x (y.offset == x.offset + sizeof(T)).
+  template <typename Visit>
+  void withTypeAndPairing(Visit&& visit) const {
+    withType([&](auto coordinate) {
+      if (y.offset == x.offset + sizeof coordinate)
+        visit(coordinate, std::true_type{});
+      else
+        visit(coordinate, std::false_type{});
+    });
   }
   const PointField& x;
   const PointField& y;
@@ -204,18 +219,38 @@ void readReturns(const sensor_msgs::PointCloud2& cloud, const Coordinates& xyz, 
   prepared.firings.of_point.resize(std::is_void_v<TimeType> ? 0 : returns);
 }
 
+/// Stores a corrected position as x y z of type T at `point`'s offsets x, y, z; kAdjacentXY: y follows x
+/// (y == x + sizeof(T), as in every driver's layout): x and y converted and stored as a pair, in one
+/// SSE2 store (the conversion is cvtsd2ss's, two at a time).
+template <typename T, bool kAdjacentXY>
+inline void storePosition(std::uint8_t* point, std::uint32_t x, std::uint32_t y, std::uint32_t z,
+                          const Eigen::Vector3d& position) {
+#if defined(__SSE2__)
+  if constexpr (kAdjacentXY) {
+    const __m128d xy = _mm_loadu_pd(position.data());
+    if constexpr (std::is_same_v<T, float>)
+      _mm_storel_epi64(reinterpret_cast<__m128i*>(point + x), _mm_castps_si128(_mm_cvtpd_ps(xy)));
+    else
+      _mm_storeu_pd(reinterpret_cast<double*>(point + x), xy);
+    store(point + z, static_cast<T>(position.z()));
+    return;
+  }
+#endif
+  store(point + x, static_cast<T>(position.x()));
+  store(point + y, static_cast<T>(position.y()));
+  store(point + z, static_cast<T>(position.z()));
+}
+
 /// Writes returns [begin, end)'s corrected positions (x y z of type T) at their byte offsets in
 /// `data` (the output's), and `time_value` into their time field (of type TimeType; none for void).
-template <typename T, typename TimeType>
+template <typename T, bool kAdjacentXY, typename TimeType>
 void writeReturns(const Coordinates& xyz, std::uint32_t time_offset, double time_value,
                   const std::uint32_t* byte_offsets, const Eigen::Vector3d* corrected, std::size_t begin,
                   std::size_t end, std::uint8_t* data) {
   const std::uint32_t x = xyz.x.offset, y = xyz.y.offset, z = xyz.z.offset;
   for (std::size_t k = begin; k < end; ++k) {
     std::uint8_t* const point = data + byte_offsets[k];
-    store(point + x, static_cast<T>(corrected[k].x()));
-    store(point + y, static_cast<T>(corrected[k].y()));
-    store(point + z, static_cast<T>(corrected[k].z()));
+    storePosition<T, kAdjacentXY>(point, x, y, z, corrected[k]);
     if constexpr (!std::is_void_v<TimeType>)
       store(point + time_offset, static_cast<TimeType>(time_value));
   }
@@ -227,34 +262,47 @@ void writeReturns(const Coordinates& xyz, std::uint32_t time_offset, double time
 /// point, in the driver's unit and from the driver's own origin (Ouster's beam origin lies a few cm from
 /// the sensor frame's: a still sensor's ranges stay as they were). Integers are rounded; values kept
 /// within their type; a value that is not finite, or would not be, is left as it was.
-template <typename T, typename R>
+template <typename T, bool kAdjacentXY, typename R>
 void writeReturnsAndRanges(const Coordinates& xyz, std::uint32_t range_offset, const std::uint32_t* byte_offsets,
                            const Eigen::Vector3d* raw, const Eigen::Vector3d* corrected, std::size_t begin,
                            std::size_t end, std::uint8_t* data) {
   const std::uint32_t x = xyz.x.offset, y = xyz.y.offset, z = xyz.z.offset;
-  const auto write = [&](std::size_t k, double scaled) {
-    std::uint8_t* const point = data + byte_offsets[k];
-    store(point + x, static_cast<T>(corrected[k].x()));
-    store(point + y, static_cast<T>(corrected[k].y()));
-    store(point + z, static_cast<T>(corrected[k].z()));
+  const auto value = [&](const std::uint8_t* point) { return static_cast<double>(load<R>(point + range_offset)); };
+  // One return's range alone: value * |corrected| / |raw| (norm() is the square root of squaredNorm()).
+  const auto writeRange = [&](std::uint8_t* point, const Eigen::Vector3d& corrected_position,
+                              const Eigen::Vector3d& raw_position) {
+    const double scaled = value(point) * corrected_position.norm() / raw_position.norm();
     if (std::isfinite(scaled))  // (a non-finite value, or a non-finite correction: left as it was)
       store(point + range_offset, toFieldValue<R>(scaled));
   };
-  const auto value = [&](std::size_t k) { return static_cast<double>(load<R>(data + byte_offsets[k] + range_offset)); };
-  // value * |corrected| / |raw| (norm() is the square root of squaredNorm()), two returns at a time:
-  // their square roots and quotients in packets (Eigen's, IEEE's as std::sqrt's). Three scalar roots and
-  // divisions per return bounded the loop; the writes take the time they leave.
   std::size_t k = begin;
+  // Two returns at a time: their square roots and quotients in packets (Eigen's, IEEE's as
+  // std::sqrt's), their conversions to R too (toFieldValues). Three scalar roots and divisions per
+  // return bounded the loop; the writes take the time they leave.
   for (; k + 1 < end; k += 2) {
-    const Eigen::Array2d values(value(k), value(k + 1));
+    std::uint8_t* const first = data + byte_offsets[k];
+    std::uint8_t* const second = data + byte_offsets[k + 1];
+    const Eigen::Array2d values(value(first), value(second));
     const Eigen::Array2d corrected_squared(corrected[k].squaredNorm(), corrected[k + 1].squaredNorm());
     const Eigen::Array2d raw_squared(raw[k].squaredNorm(), raw[k + 1].squaredNorm());
     const Eigen::Array2d scaled = values * corrected_squared.sqrt() / raw_squared.sqrt();
-    write(k, scaled[0]);
-    write(k + 1, scaled[1]);
+    storePosition<T, kAdjacentXY>(first, x, y, z, corrected[k]);
+    storePosition<T, kAdjacentXY>(second, x, y, z, corrected[k + 1]);
+    // (a non-finite value, or a non-finite correction: left as it was)
+    const bool first_finite = std::isfinite(scaled[0]), second_finite = std::isfinite(scaled[1]);
+    R first_value, second_value;
+    toFieldValues<R>(first_finite ? scaled[0] : 0.0, second_finite ? scaled[1] : 0.0, first_value,
+                     second_value);
+    if (first_finite)
+      store(first + range_offset, first_value);
+    if (second_finite)
+      store(second + range_offset, second_value);
   }
-  if (k < end)
-    write(k, value(k) * corrected[k].norm() / raw[k].norm());
+  if (k < end) {
+    std::uint8_t* const point = data + byte_offsets[k];
+    storePosition<T, kAdjacentXY>(point, x, y, z, corrected[k]);
+    writeRange(point, corrected[k], raw[k]);
+  }
 }
 
 /// Writes `time_value` into the time field (of type TimeType, at `time_offset`) of returns [begin, end).
@@ -412,22 +460,23 @@ CloudOutputs CloudProcessor::correct(const PreparedCloud& prepared, const mrpt::
   const Eigen::Vector3d* const corrected = corrected_.data();
   for (std::size_t begin = 0; begin < corrected_.size(); begin += kBlock) {
     const std::size_t end = std::min(begin + kBlock, corrected_.size());
-    xyz.withType([&](auto coordinate) {
+    xyz.withTypeAndPairing([&](auto coordinate, auto adjacent_xy) {
       using T = decltype(coordinate);
+      constexpr bool kAdjacentXY = decltype(adjacent_xy)::value;
       if (range == nullptr) {
         if (prepared.byAzimuth()) {  // no field to rewrite
-          writeReturns<T, void>(xyz, 0, 0.0, byte_offsets, corrected, begin, end, data);
+          writeReturns<T, kAdjacentXY, void>(xyz, 0, 0.0, byte_offsets, corrected, begin, end, data);
           return;
         }
         withFieldType(time.datatype, [&](auto typed) {
-          writeReturns<T, decltype(typed)>(xyz, time.offset, time_value, byte_offsets, corrected, begin, end,
-                                           data);
+          writeReturns<T, kAdjacentXY, decltype(typed)>(xyz, time.offset, time_value, byte_offsets, corrected,
+                                                        begin, end, data);
         });
         return;
       }
       withFieldType(range->datatype, [&](auto typed) {
-        writeReturnsAndRanges<T, decltype(typed)>(xyz, range->offset, byte_offsets, prepared.points.data(),
-                                                  corrected, begin, end, data);
+        writeReturnsAndRanges<T, kAdjacentXY, decltype(typed)>(xyz, range->offset, byte_offsets,
+                                                               prepared.points.data(), corrected, begin, end, data);
       });
       if (!prepared.byAzimuth()) {
         withFieldType(time.datatype, [&](auto typed) {

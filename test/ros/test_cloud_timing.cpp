@@ -281,7 +281,8 @@ std::size_t fieldValueMismatches(const std::vector<double>& values) {
   return mismatches;
 }
 
-TEST(CloudTiming, FieldValuesAreRoundedAndClampedAsStdRoundDoes) {
+/// Values at and next to every half, the integer types' bounds, big and random values.
+std::vector<double> roundingCases() {
   using limits = std::numeric_limits<double>;
   std::vector<double> values;
   for (const double special : {0.0, 0.49999999999999994, 4503599627370495.5, 4503599627370497.0, 1e300,
@@ -308,19 +309,46 @@ TEST(CloudTiming, FieldValuesAreRoundedAndClampedAsStdRoundDoes) {
   std::uniform_real_distribution<double> unit(-1.0, 1.0);
   for (int i = 0; i < 200'000; ++i)
     values.push_back(unit(random) * std::pow(2.0, static_cast<double>(i % 40)));
-  EXPECT_EQ(fieldValueMismatches<std::int8_t>(values), 0u);
-  EXPECT_EQ(fieldValueMismatches<std::uint8_t>(values), 0u);
-  EXPECT_EQ(fieldValueMismatches<std::int16_t>(values), 0u);
-  EXPECT_EQ(fieldValueMismatches<std::uint16_t>(values), 0u);
-  EXPECT_EQ(fieldValueMismatches<std::int32_t>(values), 0u);
-  EXPECT_EQ(fieldValueMismatches<std::uint32_t>(values), 0u);
-  EXPECT_EQ(fieldValueMismatches<float>(values), 0u);
-  EXPECT_EQ(fieldValueMismatches<double>(values), 0u);
+  return values;
+}
+
+TEST(CloudTiming, FieldValuesAreRoundedAndClampedAsStdRoundDoes) {
+  const std::vector<double> values = roundingCases();
+  for (std::uint8_t datatype = PointField::INT8; datatype <= PointField::FLOAT64; ++datatype) {
+    ros_adapter::withFieldType(datatype, [&](auto typed) {
+      EXPECT_EQ(fieldValueMismatches<decltype(typed)>(values), 0u) << "datatype " << static_cast<int>(datatype);
+    });
+  }
   // The test can fail: truncation alone, the conversion this replaces a libm call with, differs.
   std::size_t truncated_differ = 0;
   for (const double value : values)
     truncated_differ += std::abs(value) < 1e9 && std::trunc(value) != std::round(value);
   EXPECT_GT(truncated_differ, 10'000u);
+}
+
+/// toFieldValues (two at a time: SSE2 on x86-64) against toFieldValue one value at a time, each value
+/// paired with the next and with the one before (either lane).
+template <typename T>
+std::size_t pairMismatches(const std::vector<double>& values) {
+  std::size_t mismatches = 0;
+  for (std::size_t i = 0; i + 1 < values.size(); ++i) {
+    T first, second;
+    ros_adapter::toFieldValues<T>(values[i], values[i + 1], first, second);
+    const T truth_first = ros_adapter::toFieldValue<T>(values[i]);
+    const T truth_second = ros_adapter::toFieldValue<T>(values[i + 1]);
+    mismatches += std::memcmp(&first, &truth_first, sizeof(T)) != 0;
+    mismatches += std::memcmp(&second, &truth_second, sizeof(T)) != 0;
+  }
+  return mismatches;
+}
+
+TEST(CloudTiming, PairsOfFieldValuesAreConvertedAsOneAtATime) {
+  const std::vector<double> values = roundingCases();
+  for (std::uint8_t datatype = PointField::INT8; datatype <= PointField::FLOAT64; ++datatype) {
+    ros_adapter::withFieldType(datatype, [&](auto typed) {
+      EXPECT_EQ(pairMismatches<decltype(typed)>(values), 0u) << "datatype " << static_cast<int>(datatype);
+    });
+  }
 }
 
 }  // namespace
