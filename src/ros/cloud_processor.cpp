@@ -108,6 +108,15 @@ void store(std::uint8_t* at, T value) {
   std::memcpy(at, &value, sizeof value);
 }
 
+/// Calls visit(std::bool_constant<flag>{}): a run-time flag as a template's.
+template <typename Visit>
+void withFlag(bool flag, Visit&& visit) {
+  if (flag)
+    visit(std::true_type{});
+  else
+    visit(std::false_type{});
+}
+
 }  // namespace
 
 CloudProcessor::CloudProcessor(const DeskewParams& params)
@@ -145,13 +154,18 @@ class FiringGrouper {
 
   /// The firing of a return of time value `value` in column `column`.
   std::uint32_t firingOf(double value, std::uint32_t column, Last& last) {
+    return of_column_.empty() ? firingOf<false>(value, column, last) : firingOf<true>(value, column, last);
+  }
+  /// The same, knowing whether the cloud is organized (its columns are kept).
+  template <bool kOrganized>
+  std::uint32_t firingOf(double value, std::uint32_t column, Last& last) {
     if (value == last.value && last.firing != kNoFiring)
       return last.firing;
-    std::uint32_t firing = of_column_.empty() ? kNoFiring : of_column_[column];
+    std::uint32_t firing = kOrganized ? of_column_[column] : kNoFiring;
     if (firing == kNoFiring || values_[firing] != value) {
       firing = static_cast<std::uint32_t>(values_.size());
       values_.push_back(value);
-      if (!of_column_.empty())
+      if (kOrganized)
         of_column_[column] = firing;
     }
     last.firing = firing;
@@ -181,16 +195,24 @@ inline bool isReturn(double x, double y, double z) {
 
 /// Reads the returns of `cloud` (finite coordinates of type T, not exactly the origin: range 0 is "no
 /// return" for Ouster and others) in the cloud's order into `prepared` (points, byte offsets and, by
-/// the value of their time field of type TimeType, their firings; void: not read).
-template <typename T, typename TimeType>
+/// the value of their time field of type TimeType, their firings; void: not read). kAdjacentXYZ: y and
+/// z follow x (every driver's layout: their offsets are constants of the loop); kOrganized: the cloud is
+/// organized (height above 1: `grouper` keeps its columns).
+template <typename T, typename TimeType, bool kAdjacentXYZ, bool kOrganized>
 void readReturns(const sensor_msgs::PointCloud2& cloud, const Coordinates& xyz, std::uint32_t time_offset,
                  PreparedCloud& prepared, FiringGrouper& grouper) {
   const std::size_t count = static_cast<std::size_t>(cloud.width) * cloud.height;
   prepared.points.resize(count);
   prepared.byte_offsets.resize(count);
   prepared.firings.of_point.resize(std::is_void_v<TimeType> ? 0 : count);
-  const std::uint8_t* const data = cloud.data.data();
-  const std::uint32_t x = xyz.x.offset, y = xyz.y.offset, z = xyz.z.offset;
+  // Each field from x's byte: fewer offsets held over the loop. (No point: data may be null.)
+  const std::uint8_t* const data = count == 0 ? cloud.data.data() : cloud.data.data() + xyz.x.offset;
+  const auto from_x = [&](std::uint32_t offset) {
+    return static_cast<std::ptrdiff_t>(offset) - static_cast<std::ptrdiff_t>(xyz.x.offset);
+  };
+  const std::ptrdiff_t y = kAdjacentXYZ ? static_cast<std::ptrdiff_t>(sizeof(T)) : from_x(xyz.y.offset);
+  const std::ptrdiff_t z = kAdjacentXYZ ? static_cast<std::ptrdiff_t>(2 * sizeof(T)) : from_x(xyz.z.offset);
+  const std::ptrdiff_t time = from_x(time_offset);
   Eigen::Vector3d* const points = prepared.points.data();
   std::uint32_t* const byte_offsets = prepared.byte_offsets.data();
   std::uint32_t* const firings = prepared.firings.of_point.data();
@@ -204,14 +226,14 @@ void readReturns(const sensor_msgs::PointCloud2& cloud, const Coordinates& xyz, 
     for (std::uint32_t column = 0; column < width; ++column) {
       const auto at = static_cast<std::uint32_t>(row * row_step + column * point_step);
       const std::uint8_t* const point = data + at;
-      const T px = load<T>(point + x), py = load<T>(point + y), pz = load<T>(point + z);
+      const T px = load<T>(point), py = load<T>(point + y), pz = load<T>(point + z);
       if (!isReturn(px, py, pz))
         continue;
       points[returns] = Eigen::Vector3d(px, py, pz);
       byte_offsets[returns] = at;
       if constexpr (!std::is_void_v<TimeType>)
         firings[returns] =
-            grouper.firingOf(static_cast<double>(load<TimeType>(point + time_offset)), column, last);
+            grouper.firingOf<kOrganized>(static_cast<double>(load<TimeType>(point + time)), column, last);
       ++returns;
     }
   }
@@ -409,12 +431,19 @@ PreparedCloud CloudProcessor::prepare(const sensor_msgs::PointCloud2::ConstPtr& 
   FiringGrouper grouper(organized ? cloud.width : 0);
   xyz.withType([&](auto coordinate) {
     using T = decltype(coordinate);
-    if (time_field == nullptr) {
-      readReturns<T, void>(cloud, xyz, 0, prepared, grouper);
-      return;
-    }
-    withFieldType(time_field->datatype, [&](auto time) {
-      readReturns<T, decltype(time)>(cloud, xyz, time_field->offset, prepared, grouper);
+    const bool adjacent = xyz.y.offset == xyz.x.offset + sizeof(T) && xyz.z.offset == xyz.x.offset + 2 * sizeof(T);
+    withFlag(adjacent, [&](auto adjacent_xyz) {
+      withFlag(organized, [&](auto organized_cloud) {
+        constexpr bool kAdjacentXYZ = decltype(adjacent_xyz)::value, kOrganized = decltype(organized_cloud)::value;
+        if (time_field == nullptr) {
+          readReturns<T, void, kAdjacentXYZ, kOrganized>(cloud, xyz, 0, prepared, grouper);
+          return;
+        }
+        withFieldType(time_field->datatype, [&](auto time) {
+          readReturns<T, decltype(time), kAdjacentXYZ, kOrganized>(cloud, xyz, time_field->offset, prepared,
+                                                                   grouper);
+        });
+      });
     });
   });
   const std::size_t returns = prepared.points.size();
