@@ -523,7 +523,10 @@ TimeNs ScanDeskewer::correctFirings(const std::vector<Eigen::Vector3d>& points, 
   const TimeNs reference_time = origin + secondsToNs(reference_offset);
   const MotionSource& source =
       motionFor(motion, origin + secondsToNs(earliest), origin + secondsToNs(latest));
-  corrected.resize(points.size());
+  // (the point count in a local: the stores below may alias the vectors' members for the compiler,
+  // which then reloads points.size() per point)
+  const std::size_t point_count = points.size();
+  corrected.resize(point_count);
   const Eigen::Vector3d* const in = points.data();
   Eigen::Vector3d* const out = corrected.data();
   const std::uint32_t* const firing_of = firings.of_point.data();
@@ -531,7 +534,7 @@ TimeNs ScanDeskewer::correctFirings(const std::vector<Eigen::Vector3d>& points, 
 
   if (config_.knot_interval == 0.0) {
     const ExactChain chain(reference_time, mount, source);
-    for (std::size_t i = 0; i < points.size(); ++i) {
+    for (std::size_t i = 0; i < point_count; ++i) {
       if (firing_of[i] >= count)
         throw beyondTheFirings(count);
       out[i] = chain.apply(origin + secondsToNs(offsets[firing_of[i]]), in[i]);
@@ -546,7 +549,7 @@ TimeNs ScanDeskewer::correctFirings(const std::vector<Eigen::Vector3d>& points, 
   for (std::size_t f = 0; f < count; ++f)
     trajectory_.transformAt(offsets[f], firing_maps_[f].rotation, firing_maps_[f].translation);
   const FiringMap* const maps = firing_maps_.data();
-  for (std::size_t i = 0; i < points.size(); ++i) {
+  for (std::size_t i = 0; i < point_count; ++i) {
     if (firing_of[i] >= count)
       throw beyondTheFirings(count);
     const FiringMap& map = maps[firing_of[i]];

@@ -8,8 +8,13 @@
 #include <limits>
 #include <type_traits>
 
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
 #include "lidar_deskew/ros/cloud_azimuth.h"
 #include "lidar_deskew/ros/conversions.h"
+#include "lidar_deskew/ros/range_scaling.h"
 #include "lidar_deskew/ros/scan_processor.h"
 
 namespace lidar_deskew::ros_adapter {
@@ -52,6 +57,17 @@ struct Coordinates {
     else
       visit(double{});
   }
+  /// Calls visit(T{}, std::bool_constant<y follows x>{}): their C++ type, and whether y lies right
+  /// after x (y.offset == x.offset + sizeof(T)).
+  template <typename Visit>
+  void withTypeAndPairing(Visit&& visit) const {
+    withType([&](auto coordinate) {
+      if (y.offset == x.offset + sizeof coordinate)
+        visit(coordinate, std::true_type{});
+      else
+        visit(coordinate, std::false_type{});
+    });
+  }
   const PointField& x;
   const PointField& y;
   const PointField& z;
@@ -92,6 +108,15 @@ void store(std::uint8_t* at, T value) {
   std::memcpy(at, &value, sizeof value);
 }
 
+/// Calls visit(std::bool_constant<flag>{}): a run-time flag as a template's.
+template <typename Visit>
+void withFlag(bool flag, Visit&& visit) {
+  if (flag)
+    visit(std::true_type{});
+  else
+    visit(std::false_type{});
+}
+
 }  // namespace
 
 CloudProcessor::CloudProcessor(const DeskewParams& params)
@@ -129,13 +154,18 @@ class FiringGrouper {
 
   /// The firing of a return of time value `value` in column `column`.
   std::uint32_t firingOf(double value, std::uint32_t column, Last& last) {
+    return of_column_.empty() ? firingOf<false>(value, column, last) : firingOf<true>(value, column, last);
+  }
+  /// The same, knowing whether the cloud is organized (its columns are kept).
+  template <bool kOrganized>
+  std::uint32_t firingOf(double value, std::uint32_t column, Last& last) {
     if (value == last.value && last.firing != kNoFiring)
       return last.firing;
-    std::uint32_t firing = of_column_.empty() ? kNoFiring : of_column_[column];
+    std::uint32_t firing = kOrganized ? of_column_[column] : kNoFiring;
     if (firing == kNoFiring || values_[firing] != value) {
       firing = static_cast<std::uint32_t>(values_.size());
       values_.push_back(value);
-      if (!of_column_.empty())
+      if (kOrganized)
         of_column_[column] = firing;
     }
     last.firing = firing;
@@ -165,16 +195,24 @@ inline bool isReturn(double x, double y, double z) {
 
 /// Reads the returns of `cloud` (finite coordinates of type T, not exactly the origin: range 0 is "no
 /// return" for Ouster and others) in the cloud's order into `prepared` (points, byte offsets and, by
-/// the value of their time field of type TimeType, their firings; void: not read).
-template <typename T, typename TimeType>
+/// the value of their time field of type TimeType, their firings; void: not read). kAdjacentXYZ: y and
+/// z follow x (every driver's layout: their offsets are constants of the loop); kOrganized: the cloud is
+/// organized (height above 1: `grouper` keeps its columns).
+template <typename T, typename TimeType, bool kAdjacentXYZ, bool kOrganized>
 void readReturns(const sensor_msgs::PointCloud2& cloud, const Coordinates& xyz, std::uint32_t time_offset,
                  PreparedCloud& prepared, FiringGrouper& grouper) {
   const std::size_t count = static_cast<std::size_t>(cloud.width) * cloud.height;
   prepared.points.resize(count);
   prepared.byte_offsets.resize(count);
   prepared.firings.of_point.resize(std::is_void_v<TimeType> ? 0 : count);
-  const std::uint8_t* const data = cloud.data.data();
-  const std::uint32_t x = xyz.x.offset, y = xyz.y.offset, z = xyz.z.offset;
+  // Each field from x's byte: fewer offsets held over the loop. (No point: data may be null.)
+  const std::uint8_t* const data = count == 0 ? cloud.data.data() : cloud.data.data() + xyz.x.offset;
+  const auto from_x = [&](std::uint32_t offset) {
+    return static_cast<std::ptrdiff_t>(offset) - static_cast<std::ptrdiff_t>(xyz.x.offset);
+  };
+  const std::ptrdiff_t y = kAdjacentXYZ ? static_cast<std::ptrdiff_t>(sizeof(T)) : from_x(xyz.y.offset);
+  const std::ptrdiff_t z = kAdjacentXYZ ? static_cast<std::ptrdiff_t>(2 * sizeof(T)) : from_x(xyz.z.offset);
+  const std::ptrdiff_t time = from_x(time_offset);
   Eigen::Vector3d* const points = prepared.points.data();
   std::uint32_t* const byte_offsets = prepared.byte_offsets.data();
   std::uint32_t* const firings = prepared.firings.of_point.data();
@@ -188,14 +226,14 @@ void readReturns(const sensor_msgs::PointCloud2& cloud, const Coordinates& xyz, 
     for (std::uint32_t column = 0; column < width; ++column) {
       const auto at = static_cast<std::uint32_t>(row * row_step + column * point_step);
       const std::uint8_t* const point = data + at;
-      const T px = load<T>(point + x), py = load<T>(point + y), pz = load<T>(point + z);
+      const T px = load<T>(point), py = load<T>(point + y), pz = load<T>(point + z);
       if (!isReturn(px, py, pz))
         continue;
       points[returns] = Eigen::Vector3d(px, py, pz);
       byte_offsets[returns] = at;
       if constexpr (!std::is_void_v<TimeType>)
         firings[returns] =
-            grouper.firingOf(static_cast<double>(load<TimeType>(point + time_offset)), column, last);
+            grouper.firingOf<kOrganized>(static_cast<double>(load<TimeType>(point + time)), column, last);
       ++returns;
     }
   }
@@ -204,18 +242,38 @@ void readReturns(const sensor_msgs::PointCloud2& cloud, const Coordinates& xyz, 
   prepared.firings.of_point.resize(std::is_void_v<TimeType> ? 0 : returns);
 }
 
+/// Stores a corrected position as x y z of type T at `point`'s offsets x, y, z; kAdjacentXY: y follows x
+/// (y == x + sizeof(T), as in every driver's layout): x and y converted and stored as a pair, in one
+/// SSE2 store (the conversion is cvtsd2ss's, two at a time).
+template <typename T, bool kAdjacentXY>
+inline void storePosition(std::uint8_t* point, std::uint32_t x, std::uint32_t y, std::uint32_t z,
+                          const Eigen::Vector3d& position) {
+#if defined(__SSE2__)
+  if constexpr (kAdjacentXY) {
+    const __m128d xy = _mm_loadu_pd(position.data());
+    if constexpr (std::is_same_v<T, float>)
+      _mm_storel_epi64(reinterpret_cast<__m128i*>(point + x), _mm_castps_si128(_mm_cvtpd_ps(xy)));
+    else
+      _mm_storeu_pd(reinterpret_cast<double*>(point + x), xy);
+    store(point + z, static_cast<T>(position.z()));
+    return;
+  }
+#endif
+  store(point + x, static_cast<T>(position.x()));
+  store(point + y, static_cast<T>(position.y()));
+  store(point + z, static_cast<T>(position.z()));
+}
+
 /// Writes returns [begin, end)'s corrected positions (x y z of type T) at their byte offsets in
 /// `data` (the output's), and `time_value` into their time field (of type TimeType; none for void).
-template <typename T, typename TimeType>
+template <typename T, bool kAdjacentXY, typename TimeType>
 void writeReturns(const Coordinates& xyz, std::uint32_t time_offset, double time_value,
                   const std::uint32_t* byte_offsets, const Eigen::Vector3d* corrected, std::size_t begin,
                   std::size_t end, std::uint8_t* data) {
   const std::uint32_t x = xyz.x.offset, y = xyz.y.offset, z = xyz.z.offset;
   for (std::size_t k = begin; k < end; ++k) {
     std::uint8_t* const point = data + byte_offsets[k];
-    store(point + x, static_cast<T>(corrected[k].x()));
-    store(point + y, static_cast<T>(corrected[k].y()));
-    store(point + z, static_cast<T>(corrected[k].z()));
+    storePosition<T, kAdjacentXY>(point, x, y, z, corrected[k]);
     if constexpr (!std::is_void_v<TimeType>)
       store(point + time_offset, static_cast<TimeType>(time_value));
   }
@@ -227,34 +285,80 @@ void writeReturns(const Coordinates& xyz, std::uint32_t time_offset, double time
 /// point, in the driver's unit and from the driver's own origin (Ouster's beam origin lies a few cm from
 /// the sensor frame's: a still sensor's ranges stay as they were). Integers are rounded; values kept
 /// within their type; a value that is not finite, or would not be, is left as it was.
-template <typename T, typename R>
+template <typename T, bool kAdjacentXY, typename R>
 void writeReturnsAndRanges(const Coordinates& xyz, std::uint32_t range_offset, const std::uint32_t* byte_offsets,
                            const Eigen::Vector3d* raw, const Eigen::Vector3d* corrected, std::size_t begin,
                            std::size_t end, std::uint8_t* data) {
   const std::uint32_t x = xyz.x.offset, y = xyz.y.offset, z = xyz.z.offset;
-  const auto write = [&](std::size_t k, double scaled) {
-    std::uint8_t* const point = data + byte_offsets[k];
-    store(point + x, static_cast<T>(corrected[k].x()));
-    store(point + y, static_cast<T>(corrected[k].y()));
-    store(point + z, static_cast<T>(corrected[k].z()));
+  const auto value = [&](const std::uint8_t* point) { return static_cast<double>(load<R>(point + range_offset)); };
+  // One return's range alone: value * |corrected| / |raw| (norm() is the square root of squaredNorm()).
+  const auto writeRange = [&](std::uint8_t* point, const Eigen::Vector3d& corrected_position,
+                              const Eigen::Vector3d& raw_position) {
+    const double scaled = value(point) * corrected_position.norm() / raw_position.norm();
     if (std::isfinite(scaled))  // (a non-finite value, or a non-finite correction: left as it was)
       store(point + range_offset, toFieldValue<R>(scaled));
   };
-  const auto value = [&](std::size_t k) { return static_cast<double>(load<R>(data + byte_offsets[k] + range_offset)); };
-  // value * |corrected| / |raw| (norm() is the square root of squaredNorm()), two returns at a time:
-  // their square roots and quotients in packets (Eigen's, IEEE's as std::sqrt's). Three scalar roots and
-  // divisions per return bounded the loop; the writes take the time they leave.
   std::size_t k = begin;
+#if defined(__SSE2__)
+  // A 32-bit integer range (Ouster's uint32 mm), four returns at a time: estimated in floats, in
+  // doubles only where the estimate cannot tell the rounded value (estimateRanges: a few per cent).
+  // Two double square roots and a division per return bounded the loop below.
+  if constexpr (std::is_integral_v<R> && sizeof(R) == 4) {
+    for (; k + 3 < end; k += 4) {
+      std::uint8_t* const points[4] = {data + byte_offsets[k], data + byte_offsets[k + 1],
+                                       data + byte_offsets[k + 2], data + byte_offsets[k + 3]};
+      const Eigen::Vector3d* const c = corrected + k;
+      const Eigen::Vector3d* const r = raw + k;
+      const RangeEstimates estimates = estimateRanges(
+          _mm_setr_epi32(load<std::int32_t>(points[0] + range_offset), load<std::int32_t>(points[1] + range_offset),
+                         load<std::int32_t>(points[2] + range_offset), load<std::int32_t>(points[3] + range_offset)),
+          _mm_setr_pd(c[0].squaredNorm(), c[1].squaredNorm()), _mm_setr_pd(c[2].squaredNorm(), c[3].squaredNorm()),
+          _mm_setr_pd(r[0].squaredNorm(), r[1].squaredNorm()), _mm_setr_pd(r[2].squaredNorm(), r[3].squaredNorm()));
+      for (int i = 0; i < 4; ++i)
+        storePosition<T, kAdjacentXY>(points[i], x, y, z, c[i]);
+      alignas(16) std::int32_t rounded[4];
+      _mm_store_si128(reinterpret_cast<__m128i*>(rounded), estimates.rounded);
+      if (estimates.sure == 0xf) {
+        for (int i = 0; i < 4; ++i)
+          store(points[i] + range_offset, static_cast<R>(rounded[i]));
+        continue;
+      }
+      for (int i = 0; i < 4; ++i) {
+        if ((estimates.sure >> i & 1) != 0)
+          store(points[i] + range_offset, static_cast<R>(rounded[i]));
+        else
+          writeRange(points[i], c[i], r[i]);
+      }
+    }
+  }
+#endif
+  // Two returns at a time: their square roots and quotients in packets (Eigen's, IEEE's as
+  // std::sqrt's), their conversions to R too (toFieldValues). Three scalar roots and divisions per
+  // return bounded the loop; the writes take the time they leave.
   for (; k + 1 < end; k += 2) {
-    const Eigen::Array2d values(value(k), value(k + 1));
+    std::uint8_t* const first = data + byte_offsets[k];
+    std::uint8_t* const second = data + byte_offsets[k + 1];
+    const Eigen::Array2d values(value(first), value(second));
     const Eigen::Array2d corrected_squared(corrected[k].squaredNorm(), corrected[k + 1].squaredNorm());
     const Eigen::Array2d raw_squared(raw[k].squaredNorm(), raw[k + 1].squaredNorm());
     const Eigen::Array2d scaled = values * corrected_squared.sqrt() / raw_squared.sqrt();
-    write(k, scaled[0]);
-    write(k + 1, scaled[1]);
+    storePosition<T, kAdjacentXY>(first, x, y, z, corrected[k]);
+    storePosition<T, kAdjacentXY>(second, x, y, z, corrected[k + 1]);
+    // (a non-finite value, or a non-finite correction: left as it was)
+    const bool first_finite = std::isfinite(scaled[0]), second_finite = std::isfinite(scaled[1]);
+    R first_value, second_value;
+    toFieldValues<R>(first_finite ? scaled[0] : 0.0, second_finite ? scaled[1] : 0.0, first_value,
+                     second_value);
+    if (first_finite)
+      store(first + range_offset, first_value);
+    if (second_finite)
+      store(second + range_offset, second_value);
   }
-  if (k < end)
-    write(k, value(k) * corrected[k].norm() / raw[k].norm());
+  if (k < end) {
+    std::uint8_t* const point = data + byte_offsets[k];
+    storePosition<T, kAdjacentXY>(point, x, y, z, corrected[k]);
+    writeRange(point, corrected[k], raw[k]);
+  }
 }
 
 /// Writes `time_value` into the time field (of type TimeType, at `time_offset`) of returns [begin, end).
@@ -327,12 +431,19 @@ PreparedCloud CloudProcessor::prepare(const sensor_msgs::PointCloud2::ConstPtr& 
   FiringGrouper grouper(organized ? cloud.width : 0);
   xyz.withType([&](auto coordinate) {
     using T = decltype(coordinate);
-    if (time_field == nullptr) {
-      readReturns<T, void>(cloud, xyz, 0, prepared, grouper);
-      return;
-    }
-    withFieldType(time_field->datatype, [&](auto time) {
-      readReturns<T, decltype(time)>(cloud, xyz, time_field->offset, prepared, grouper);
+    const bool adjacent = xyz.y.offset == xyz.x.offset + sizeof(T) && xyz.z.offset == xyz.x.offset + 2 * sizeof(T);
+    withFlag(adjacent, [&](auto adjacent_xyz) {
+      withFlag(organized, [&](auto organized_cloud) {
+        constexpr bool kAdjacentXYZ = decltype(adjacent_xyz)::value, kOrganized = decltype(organized_cloud)::value;
+        if (time_field == nullptr) {
+          readReturns<T, void, kAdjacentXYZ, kOrganized>(cloud, xyz, 0, prepared, grouper);
+          return;
+        }
+        withFieldType(time_field->datatype, [&](auto time) {
+          readReturns<T, decltype(time), kAdjacentXYZ, kOrganized>(cloud, xyz, time_field->offset, prepared,
+                                                                   grouper);
+        });
+      });
     });
   });
   const std::size_t returns = prepared.points.size();
@@ -412,22 +523,23 @@ CloudOutputs CloudProcessor::correct(const PreparedCloud& prepared, const mrpt::
   const Eigen::Vector3d* const corrected = corrected_.data();
   for (std::size_t begin = 0; begin < corrected_.size(); begin += kBlock) {
     const std::size_t end = std::min(begin + kBlock, corrected_.size());
-    xyz.withType([&](auto coordinate) {
+    xyz.withTypeAndPairing([&](auto coordinate, auto adjacent_xy) {
       using T = decltype(coordinate);
+      constexpr bool kAdjacentXY = decltype(adjacent_xy)::value;
       if (range == nullptr) {
         if (prepared.byAzimuth()) {  // no field to rewrite
-          writeReturns<T, void>(xyz, 0, 0.0, byte_offsets, corrected, begin, end, data);
+          writeReturns<T, kAdjacentXY, void>(xyz, 0, 0.0, byte_offsets, corrected, begin, end, data);
           return;
         }
         withFieldType(time.datatype, [&](auto typed) {
-          writeReturns<T, decltype(typed)>(xyz, time.offset, time_value, byte_offsets, corrected, begin, end,
-                                           data);
+          writeReturns<T, kAdjacentXY, decltype(typed)>(xyz, time.offset, time_value, byte_offsets, corrected,
+                                                        begin, end, data);
         });
         return;
       }
       withFieldType(range->datatype, [&](auto typed) {
-        writeReturnsAndRanges<T, decltype(typed)>(xyz, range->offset, byte_offsets, prepared.points.data(),
-                                                  corrected, begin, end, data);
+        writeReturnsAndRanges<T, kAdjacentXY, decltype(typed)>(xyz, range->offset, byte_offsets,
+                                                               prepared.points.data(), corrected, begin, end, data);
       });
       if (!prepared.byAzimuth()) {
         withFieldType(time.datatype, [&](auto typed) {

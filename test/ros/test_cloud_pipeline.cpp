@@ -7,10 +7,13 @@
 
 #include <algorithm>
 #include <array>
+#include <boost/make_shared.hpp>
 #include <cmath>
 #include <cstring>
 #include <functional>
 #include <limits>
+#include <map>
+#include <stdexcept>
 
 #include "lidar_deskew/ros/cloud_processor.h"
 #include "lidar_deskew/ros/conversions.h"
@@ -46,6 +49,8 @@ struct CloudRun {
   }
   void sweep(double t) {
     inputs.push_back(cloudOf(*drive.scanAt(t), layout));
+    if (relayout)
+      inputs.back() = relayout(*inputs.back());
     pipeline.add(inputs.back(), t + 1.0 / drive.model.rate);
     tfUntil(t + 1.0 / drive.model.rate + kTfPeriod);
   }
@@ -60,6 +65,8 @@ struct CloudRun {
 
   Drive drive;
   Layout layout;
+  /// When set: the cloud each sweep feeds, made from the driver's.
+  std::function<sensor_msgs::PointCloud2::Ptr(const sensor_msgs::PointCloud2&)> relayout;
   double tf_until = -0.1;
   CloudPipeline pipeline;
   std::vector<sensor_msgs::PointCloud2::Ptr> inputs;
@@ -152,6 +159,141 @@ TEST(CloudPipeline, OusterRangeIsTheCorrectedPointsRange) {
   EXPECT_GT(worst_raw, 20.0);
   // (two roundings to whole mm, the driver's and ours, and float32 x y z: measured 0.97 mm)
   EXPECT_LE(worst_corrected, 1.05) << "raw off by up to " << worst_raw << " mm";
+}
+
+/// A field of a made-up layout: its name, offset and datatype.
+struct FieldAt {
+  const char* name;
+  std::uint32_t offset;
+  std::uint8_t datatype;
+};
+
+/// Ouster's cloud of cloudOf (x y z, intensity, t, range) rewritten into another layout: the same
+/// values, each field converted to its datatype there (range to the nearest whole mm for integers).
+sensor_msgs::PointCloud2::Ptr relaid(const sensor_msgs::PointCloud2& ouster, const std::vector<FieldAt>& layout,
+                                     std::uint32_t point_step) {
+  auto cloud = boost::make_shared<sensor_msgs::PointCloud2>(ouster);
+  cloud->fields.clear();
+  for (const FieldAt& at : layout) {
+    sensor_msgs::PointField field;
+    field.name = at.name;
+    field.offset = at.offset;
+    field.datatype = at.datatype;
+    field.count = 1;
+    cloud->fields.push_back(field);
+  }
+  cloud->point_step = point_step;
+  cloud->row_step = point_step * cloud->width;
+  cloud->data.assign(cloud->row_step, 0);
+  const std::map<std::string, std::uint32_t> ouster_offsets = {{"x", 0}, {"y", 4}, {"z", 8}, {"intensity", 12}};
+  for (std::size_t i = 0; i < cloud->width; ++i) {
+    for (const FieldAt& at : layout) {
+      const std::string name = at.name;
+      // (each as a double: a float would round the times and ranges)
+      const double value = name == "t"       ? static_cast<double>(uint32At(ouster, i, 16))
+                           : name == "range" ? static_cast<double>(uint32At(ouster, i, 20))
+                                             : static_cast<double>(floatAt(ouster, i, ouster_offsets.at(name)));
+      ros_adapter::withFieldType(at.datatype, [&](auto typed) {
+        const auto converted = static_cast<decltype(typed)>(value);
+        std::memcpy(&cloud->data[i * point_step + at.offset], &converted, sizeof converted);
+      });
+    }
+  }
+  return cloud;
+}
+
+/// Field `offset` (of `datatype`) of point i, as a double.
+double numberAt(const sensor_msgs::PointCloud2& cloud, std::size_t i, std::uint32_t offset, std::uint8_t datatype) {
+  return ros_adapter::readNumber(&cloud.data[i * cloud.point_step + offset], datatype);
+}
+
+// The range field is scaled alike whatever the layout holds it and x y z in: the corrected ranges of
+// Ouster's cloud rewritten with x, y and z apart or in float64 and the range in other integer types
+// equal Ouster's own output, in float32 they lie within half a mm of it (unrounded). Ouster's output
+// equals value x |corrected| / |raw| rounded, computed here from the output's float32 x y z, wherever
+// that lies clear of a half (the floats' rounding moves it by up to 0.002 mm).
+TEST(CloudPipeline, RangeIsScaledAlikeInOtherLayouts) {
+  using F = sensor_msgs::PointField;
+  const double t = 0.1;
+  CloudRun ouster(Layout::kOuster);
+  ouster.firstSweep(t);
+  ASSERT_EQ(ouster.results.size(), 1u);
+  const sensor_msgs::PointCloud2& in = *ouster.inputs[0];
+  const sensor_msgs::PointCloud2& expected = *ouster.results[0].outputs.cloud;
+  std::size_t checked = 0, near_half = 0;
+  for (std::size_t i = 0; i < in.width; ++i) {
+    const Eigen::Vector3d raw(floatAt(in, i, 0), floatAt(in, i, 4), floatAt(in, i, 8));
+    const Eigen::Vector3d corrected(floatAt(expected, i, 0), floatAt(expected, i, 4), floatAt(expected, i, 8));
+    if (raw.isZero(0.0))
+      continue;
+    const double scaled = uint32At(in, i, 20) * corrected.norm() / raw.norm();
+    if (std::abs(scaled - std::floor(scaled) - 0.5) < 0.01) {
+      ++near_half;
+      continue;
+    }
+    ++checked;
+    EXPECT_EQ(uint32At(expected, i, 20), static_cast<std::uint32_t>(std::lround(scaled))) << "point " << i;
+  }
+  EXPECT_GT(checked, 500u);
+  EXPECT_LT(near_half, checked / 20);
+
+  struct Case {
+    const char* name;
+    std::vector<FieldAt> fields;
+    std::uint32_t point_step;
+  };
+  const std::vector<Case> cases = {
+      {"x, z, y apart; range uint32",
+       {{"x", 0, F::FLOAT32}, {"z", 4, F::FLOAT32}, {"y", 8, F::FLOAT32}, {"intensity", 12, F::FLOAT32},
+        {"t", 16, F::UINT32}, {"range", 20, F::UINT32}},
+       24},
+      {"x y z float64; range int32 first",
+       {{"range", 0, F::INT32}, {"x", 8, F::FLOAT64}, {"y", 16, F::FLOAT64}, {"z", 24, F::FLOAT64},
+        {"intensity", 32, F::FLOAT32}, {"t", 36, F::UINT32}},
+       40},
+      {"range uint16", {{"x", 0, F::FLOAT32}, {"y", 4, F::FLOAT32}, {"z", 8, F::FLOAT32}, {"range", 12, F::UINT16},
+        {"t", 16, F::UINT32}}, 20},
+      {"x y z float64 apart; range int16",
+       {{"y", 0, F::FLOAT64}, {"range", 8, F::INT16}, {"x", 12, F::FLOAT64}, {"z", 20, F::FLOAT64},
+        {"t", 28, F::UINT32}}, 32},
+      {"range float32", {{"x", 0, F::FLOAT32}, {"y", 4, F::FLOAT32}, {"z", 8, F::FLOAT32}, {"t", 12, F::UINT32},
+        {"range", 16, F::FLOAT32}}, 20},
+  };
+  for (const Case& test_case : cases) {
+    SCOPED_TRACE(test_case.name);
+    CloudRun run(Layout::kOuster);
+    run.relayout = [&](const sensor_msgs::PointCloud2& cloud) {
+      return relaid(cloud, test_case.fields, test_case.point_step);
+    };
+    run.firstSweep(t);
+    ASSERT_EQ(run.results.size(), 1u);
+    const sensor_msgs::PointCloud2& out = *run.results[0].outputs.cloud;
+    ASSERT_EQ(out.width, expected.width);
+    const auto offset = [&](const std::string& name) {
+      for (const FieldAt& at : test_case.fields)
+        if (name == at.name)
+          return at;
+      throw std::logic_error("no field " + name);
+    };
+    std::size_t compared = 0;
+    for (std::size_t i = 0; i < out.width; ++i) {
+      if (floatAt(in, i, 0) == 0.0f && floatAt(in, i, 4) == 0.0f)
+        continue;  // no return
+      ++compared;
+      for (const auto& [name, ouster_offset] : {std::pair<const char*, std::uint32_t>{"x", 0}, {"y", 4}, {"z", 8}}) {
+        const FieldAt at = offset(name);
+        EXPECT_EQ(static_cast<float>(numberAt(out, i, at.offset, at.datatype)), floatAt(expected, i, ouster_offset))
+            << name << " of point " << i;
+      }
+      const FieldAt range = offset("range");
+      const double value = numberAt(out, i, range.offset, range.datatype);
+      if (range.datatype == F::FLOAT32)
+        EXPECT_LE(std::abs(value - uint32At(expected, i, 20)), 0.5 + 1e-3) << "point " << i;
+      else
+        EXPECT_EQ(value, uint32At(expected, i, 20)) << "point " << i;
+    }
+    EXPECT_EQ(compared, checked + near_half);
+  }
 }
 
 // The planar scan of a cloud (cloud_scan) carries the intensity of the point it keeps in each bin: the

@@ -13,6 +13,7 @@
 
 #include "lidar_deskew/ros/cloud_timing.h"
 #include "lidar_deskew/ros/conversions.h"
+#include "lidar_deskew/ros/range_scaling.h"
 
 namespace lidar_deskew::test {
 namespace {
@@ -281,7 +282,8 @@ std::size_t fieldValueMismatches(const std::vector<double>& values) {
   return mismatches;
 }
 
-TEST(CloudTiming, FieldValuesAreRoundedAndClampedAsStdRoundDoes) {
+/// Values at and next to every half, the integer types' bounds, big and random values.
+std::vector<double> roundingCases() {
   using limits = std::numeric_limits<double>;
   std::vector<double> values;
   for (const double special : {0.0, 0.49999999999999994, 4503599627370495.5, 4503599627370497.0, 1e300,
@@ -308,20 +310,117 @@ TEST(CloudTiming, FieldValuesAreRoundedAndClampedAsStdRoundDoes) {
   std::uniform_real_distribution<double> unit(-1.0, 1.0);
   for (int i = 0; i < 200'000; ++i)
     values.push_back(unit(random) * std::pow(2.0, static_cast<double>(i % 40)));
-  EXPECT_EQ(fieldValueMismatches<std::int8_t>(values), 0u);
-  EXPECT_EQ(fieldValueMismatches<std::uint8_t>(values), 0u);
-  EXPECT_EQ(fieldValueMismatches<std::int16_t>(values), 0u);
-  EXPECT_EQ(fieldValueMismatches<std::uint16_t>(values), 0u);
-  EXPECT_EQ(fieldValueMismatches<std::int32_t>(values), 0u);
-  EXPECT_EQ(fieldValueMismatches<std::uint32_t>(values), 0u);
-  EXPECT_EQ(fieldValueMismatches<float>(values), 0u);
-  EXPECT_EQ(fieldValueMismatches<double>(values), 0u);
+  return values;
+}
+
+TEST(CloudTiming, FieldValuesAreRoundedAndClampedAsStdRoundDoes) {
+  const std::vector<double> values = roundingCases();
+  for (std::uint8_t datatype = PointField::INT8; datatype <= PointField::FLOAT64; ++datatype) {
+    ros_adapter::withFieldType(datatype, [&](auto typed) {
+      EXPECT_EQ(fieldValueMismatches<decltype(typed)>(values), 0u) << "datatype " << static_cast<int>(datatype);
+    });
+  }
   // The test can fail: truncation alone, the conversion this replaces a libm call with, differs.
   std::size_t truncated_differ = 0;
   for (const double value : values)
     truncated_differ += std::abs(value) < 1e9 && std::trunc(value) != std::round(value);
   EXPECT_GT(truncated_differ, 10'000u);
 }
+
+/// toFieldValues (two at a time: SSE2 on x86-64) against toFieldValue one value at a time, each value
+/// paired with the next and with the one before (either lane).
+template <typename T>
+std::size_t pairMismatches(const std::vector<double>& values) {
+  std::size_t mismatches = 0;
+  for (std::size_t i = 0; i + 1 < values.size(); ++i) {
+    T first, second;
+    ros_adapter::toFieldValues<T>(values[i], values[i + 1], first, second);
+    const T truth_first = ros_adapter::toFieldValue<T>(values[i]);
+    const T truth_second = ros_adapter::toFieldValue<T>(values[i + 1]);
+    mismatches += std::memcmp(&first, &truth_first, sizeof(T)) != 0;
+    mismatches += std::memcmp(&second, &truth_second, sizeof(T)) != 0;
+  }
+  return mismatches;
+}
+
+TEST(CloudTiming, PairsOfFieldValuesAreConvertedAsOneAtATime) {
+  const std::vector<double> values = roundingCases();
+  for (std::uint8_t datatype = PointField::INT8; datatype <= PointField::FLOAT64; ++datatype) {
+    ros_adapter::withFieldType(datatype, [&](auto typed) {
+      EXPECT_EQ(pairMismatches<decltype(typed)>(values), 0u) << "datatype " << static_cast<int>(datatype);
+    });
+  }
+}
+
+#if defined(__SSE2__)
+// The range field's float estimates (CloudProcessor, a 32-bit integer range) against the exact scaled
+// range, value x sqrt(corrected^2) / sqrt(raw^2) in doubles rounded as toFieldValue does (uint32 and
+// int32): where an estimate says it is sure it must equal that, over ranges of 0.5-120 m in mm moved
+// up to 5 %, values whose scaled range lies within 1e-6 of a half (sure there would be a guess), big
+// values, values beyond int32 (negative in its lanes), and squares that are 0, tiny, huge or not finite.
+TEST(CloudTiming, RangeEstimatesAreSureOnlyOfTheExactRoundedValue) {
+  std::mt19937_64 random(35);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  const double specials[] = {0.0, 1e-200, 1e-40, 1e40, 1e200, HUGE_VAL, std::numeric_limits<double>::quiet_NaN()};
+  std::size_t mismatches = 0, typical = 0, typical_sure = 0, halves = 0, halves_sure = 0, big = 0, big_sure = 0,
+              out_of_range_sure = 0;
+  for (int n = 0; n < 200'000; ++n) {
+    std::uint32_t values[4];
+    double corrected[4], raw[4];
+    const int kind = n % 4;
+    for (int i = 0; i < 4; ++i) {
+      const double distance = 500.0 + unit(random) * 119'500.0;  // [mm]
+      raw[i] = distance * distance * 1e-6;                        // [m^2]
+      const double ratio = 0.95 + 0.1 * unit(random);
+      values[i] = static_cast<std::uint32_t>(std::lround(distance));
+      if (kind == 1) {  // the exact scaled range within 1e-6 of a half
+        const double half = std::floor(distance * ratio) + 0.5 + (unit(random) - 0.5) * 2e-6;
+        corrected[i] = raw[i] * (half / values[i]) * (half / values[i]);
+      } else {
+        corrected[i] = raw[i] * ratio * ratio;
+      }
+      if (kind == 2)  // big values, and beyond int32
+        values[i] = static_cast<std::uint32_t>(unit(random) * 4294967295.0);
+      if (kind == 3) {  // squares out of range
+        (i % 2 == 0 ? corrected[i] : raw[i]) = specials[random() % std::size(specials)];
+      }
+    }
+    const ros_adapter::RangeEstimates estimates = ros_adapter::estimateRanges(
+        _mm_setr_epi32(static_cast<int>(values[0]), static_cast<int>(values[1]), static_cast<int>(values[2]),
+                       static_cast<int>(values[3])),
+        _mm_setr_pd(corrected[0], corrected[1]), _mm_setr_pd(corrected[2], corrected[3]), _mm_setr_pd(raw[0], raw[1]),
+        _mm_setr_pd(raw[2], raw[3]));
+    alignas(16) std::int32_t rounded[4];
+    _mm_store_si128(reinterpret_cast<__m128i*>(rounded), estimates.rounded);
+    for (int i = 0; i < 4; ++i) {
+      const bool sure = (estimates.sure >> i & 1) != 0;
+      typical += kind == 0;
+      typical_sure += kind == 0 && sure;
+      halves += kind == 1;
+      halves_sure += kind == 1 && sure;
+      big += kind == 2;
+      big_sure += kind == 2 && sure;
+      out_of_range_sure += kind == 3 && sure;
+      if (!sure)
+        continue;
+      const double as_uint32 = static_cast<double>(values[i]) * std::sqrt(corrected[i]) / std::sqrt(raw[i]);
+      const double as_int32 =
+          static_cast<double>(static_cast<std::int32_t>(values[i])) * std::sqrt(corrected[i]) / std::sqrt(raw[i]);
+      mismatches += !std::isfinite(as_uint32) || !std::isfinite(as_int32) ||
+                    ros_adapter::toFieldValue<std::uint32_t>(as_uint32) != static_cast<std::uint32_t>(rounded[i]) ||
+                    ros_adapter::toFieldValue<std::int32_t>(as_int32) != rounded[i];
+    }
+  }
+  EXPECT_EQ(mismatches, 0u);
+  // Sure of most typical ranges (at 60 m, all but those within 0.03 mm of a half: 94 %), of hardly any
+  // near a half, of big values only below 2^22 (0.1 %), never with a square out of [2^-60, 2^60].
+  EXPECT_GT(typical_sure, typical * 90 / 100) << typical_sure << " of " << typical;
+  EXPECT_LT(halves_sure, halves / 100) << halves_sure << " of " << halves;
+  EXPECT_GT(big_sure, 20u);
+  EXPECT_LT(big_sure, big / 200) << big_sure << " of " << big;
+  EXPECT_EQ(out_of_range_sure, 0u);
+}
+#endif
 
 }  // namespace
 }  // namespace lidar_deskew::test

@@ -15,6 +15,10 @@
 
 #include "lidar_deskew/core/types.h"
 
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
 namespace lidar_deskew::ros_adapter {
 
 /// How to read a cloud's per-point time; the defaults find it alone.
@@ -100,6 +104,46 @@ T toFieldValue(double value) {
   } else {
     return static_cast<T>(std::clamp(value, lowest, highest));
   }
+}
+
+/// toFieldValue() of two finite values at once, equal to it value by value: for an integer type in SSE2
+/// where the target has it (clamped, then rounded half away from zero in doubles: |value| to the
+/// nearest whole number by adding and subtracting 2^52, less one where that rounded up, plus one where
+/// the fraction left is 0.5 or more); one value at a time otherwise.
+template <typename T>
+inline void toFieldValues(double first, double second, T& first_value, T& second_value) {
+#if defined(__SSE2__)
+  if constexpr (std::is_integral_v<T>) {
+    static_assert(sizeof(T) <= 4, "PointField integers have at most 32 bits");
+    constexpr double lowest = static_cast<double>(std::numeric_limits<T>::lowest());
+    constexpr double highest = static_cast<double>(std::numeric_limits<T>::max());
+    // (the bounds are whole numbers: clamping first, the rounding keeps them)
+    const __m128d clamped =
+        _mm_min_pd(_mm_max_pd(_mm_set_pd(second, first), _mm_set1_pd(lowest)), _mm_set1_pd(highest));
+    const __m128d sign = _mm_set1_pd(-0.0);
+    const __m128d magnitude = _mm_andnot_pd(sign, clamped);  // below 2^32: rounds exactly at 2^52
+    const __m128d two_52 = _mm_set1_pd(4503599627370496.0);
+    const __m128d nearest = _mm_sub_pd(_mm_add_pd(magnitude, two_52), two_52);
+    const __m128d one = _mm_set1_pd(1.0);
+    const __m128d whole = _mm_sub_pd(nearest, _mm_and_pd(_mm_cmpgt_pd(nearest, magnitude), one));
+    const __m128d fraction = _mm_sub_pd(magnitude, whole);  // exact
+    const __m128d rounded = _mm_or_pd(
+        _mm_add_pd(whole, _mm_and_pd(_mm_cmpge_pd(fraction, _mm_set1_pd(0.5)), one)), _mm_and_pd(clamped, sign));
+    if constexpr (std::is_same_v<T, std::uint32_t>) {  // beyond int32: shifted into its range and back
+      const __m128i shifted = _mm_cvttpd_epi32(_mm_sub_pd(rounded, _mm_set1_pd(2147483648.0)));
+      const __m128i values = _mm_xor_si128(shifted, _mm_set1_epi32(static_cast<int>(0x80000000u)));
+      first_value = static_cast<T>(static_cast<std::uint32_t>(_mm_cvtsi128_si32(values)));
+      second_value = static_cast<T>(static_cast<std::uint32_t>(_mm_cvtsi128_si32(_mm_srli_si128(values, 4))));
+    } else {
+      const __m128i values = _mm_cvttpd_epi32(rounded);
+      first_value = static_cast<T>(_mm_cvtsi128_si32(values));
+      second_value = static_cast<T>(_mm_cvtsi128_si32(_mm_srli_si128(values, 4)));
+    }
+    return;
+  }
+#endif
+  first_value = toFieldValue<T>(first);
+  second_value = toFieldValue<T>(second);
 }
 
 /// Bytes of a value of a PointField datatype; 0 for an unknown one.
