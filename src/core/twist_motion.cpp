@@ -227,9 +227,11 @@ Twist TwistMotion::Piece::omega(double tau) const {
   return result;
 }
 
-std::deque<TwistMotion::Sample>::iterator TwistMotion::cachedAt(TimeNs time) {
-  return std::lower_bound(cache_.begin(), cache_.end(), time,
-                          [](const Sample& sample, TimeNs t) { return sample.time < t; });
+std::size_t TwistMotion::cachedAt(TimeNs time) const {
+  return static_cast<std::size_t>(
+      std::lower_bound(cache_.begin() + static_cast<std::ptrdiff_t>(cache_start_), cache_.end(), time,
+                       [](const Sample& sample, TimeNs t) { return sample.time < t; }) -
+      cache_.begin());
 }
 
 bool TwistMotion::gatherSamples(const MotionSource& raw, TimeNs begin, TimeNs end, TimeNs look_ahead) {
@@ -258,35 +260,45 @@ bool TwistMotion::gatherSamples(const MotionSource& raw, TimeNs begin, TimeNs en
 
   // The source's answer at a sample time does not change once given: answers are kept for the next
   // sweeps (which share most of their window), until time goes back (a bag loop, a clock reset).
-  if (begin < cache_begin_ || &raw != cache_source_)
+  if (begin < cache_begin_ || &raw != cache_source_) {
     cache_.clear();
+    cache_start_ = 0;
+  }
   cache_begin_ = begin;
   cache_source_ = &raw;
   // The queries walk outwards from the sweep's first sample, and the cache along with them by index
-  // (most times are cached: only the new ones are asked and inserted where they sort).
-  const auto ask = [&](std::size_t i, std::size_t position) {
+  // (most times are cached: only the new ones are asked and inserted where they sort). The cache's
+  // samples are cache_[cache_start_, size): one inserted at its front takes the slot before it when
+  // there is one. `position` is where it sorts; returns false when the source does not answer, else
+  // sets `position` to where it was put.
+  const auto ask = [&](std::size_t i, std::size_t& position) {
     mrpt::poses::CPose3D pose;
     try {
       pose = raw.basePose(times_[i]);
     } catch (const MotionUnavailable&) {
       return false;
     }
-    cache_.insert(cache_.begin() + static_cast<std::ptrdiff_t>(position),
-                  {times_[i], detail::rotationOf(pose), detail::translationOf(pose), Twist::Zero(), -1});
+    Sample answer{times_[i], detail::rotationOf(pose), detail::translationOf(pose), Twist::Zero(), -1};
+    if (position == cache_start_ && cache_start_ > 0) {
+      position = --cache_start_;
+      cache_[position] = answer;
+    } else {
+      cache_.insert(cache_.begin() + static_cast<std::ptrdiff_t>(position), answer);
+    }
     return true;
   };
   // From the sweep's first sample outwards, stopping where the source no longer answers (a chain's
   // links end at different times): times_[low, high) are answered. `cached`: the cache's samples from
   // there on are at or after the last time answered (before it going down, after it going up).
-  std::size_t cached = static_cast<std::size_t>(cachedAt(times_[first]) - cache_.begin());
+  std::size_t cached = cachedAt(times_[first]);
   while (cached < cache_.size() && cache_[cached].time == times_[first])
     ++cached;  // just after times_[first] when it is cached
   std::size_t low = first + 1;
   while (low > 0) {
     const TimeNs time = times_[low - 1];
-    while (cached > 0 && cache_[cached - 1].time > time)
+    while (cached > cache_start_ && cache_[cached - 1].time > time)
       --cached;  // no longer a sample time of the source (skipped, as before)
-    if (cached > 0 && cache_[cached - 1].time == time) {
+    if (cached > cache_start_ && cache_[cached - 1].time == time) {
       --cached;
     } else if (!ask(low - 1, cached)) {
       if (low - 1 == first)
@@ -295,7 +307,7 @@ bool TwistMotion::gatherSamples(const MotionSource& raw, TimeNs begin, TimeNs en
     }
     --low;
   }
-  cached = static_cast<std::size_t>(cachedAt(times_[first] + 1) - cache_.begin());
+  cached = cachedAt(times_[first] + 1);
   std::size_t high = first + 1;
   while (high < times_.size()) {
     const TimeNs time = times_[high];
@@ -312,15 +324,20 @@ bool TwistMotion::gatherSamples(const MotionSource& raw, TimeNs begin, TimeNs en
     }
     ++high;
   }
-  // Forget what no later sweep's window reaches, then point at the window's samples in the cache (no
-  // more insertions until the next prepare(): the pointers stay valid).
-  cache_.erase(cache_.begin(), cachedAt(times_[low]));
+  // Forget what no later sweep's window reaches (by moving the cache's start; its dead front is dropped
+  // once it outgrows the live samples), then point at the window's samples in the cache (no more
+  // insertions until the next prepare(): the pointers stay valid).
+  cache_start_ = cachedAt(times_[low]);
+  if (cache_start_ > 0 && cache_start_ >= cache_.size() - cache_start_) {
+    cache_.erase(cache_.begin(), cache_.begin() + static_cast<std::ptrdiff_t>(cache_start_));
+    cache_start_ = 0;
+  }
   samples_.clear();
-  auto kept = cache_.begin();
+  std::size_t kept = cache_start_;
   for (std::size_t i = low; i < high; ++i) {
-    while (kept->time < times_[i])
+    while (cache_[kept].time < times_[i])
       ++kept;
-    samples_.push_back(&*kept);
+    samples_.push_back(&cache_[kept]);
   }
   closing_ = last - low;
   return samples_.size() >= 2;

@@ -5,7 +5,6 @@
 #include <Eigen/Core>
 
 #include <array>
-#include <deque>
 #include <vector>
 
 #include "lidar_deskew/core/motion.h"
@@ -114,8 +113,8 @@ class TwistMotion final : public MotionSource {
     Twist omega(double tau) const;
   };
 
-  /// The first cached sample at or after `time`.
-  std::deque<Sample>::iterator cachedAt(TimeNs time);
+  /// The index in cache_ of the first cached sample at or after `time`.
+  std::size_t cachedAt(TimeNs time) const;
   /// The k-th sample of the window prepare() fits over (kept in cache_).
   Sample& sample(std::size_t k) const { return *samples_[k]; }
   bool gatherSamples(const MotionSource& raw, TimeNs begin, TimeNs end, TimeNs look_ahead);
@@ -143,7 +142,8 @@ class TwistMotion final : public MotionSource {
   const MotionSource* raw_ = nullptr;
   std::vector<Sample*> samples_;  // the window's samples, in cache_ (stable until the next prepare())
   std::size_t closing_ = 0;       // samples_[closing_] closes the sweep; later ones: the look-ahead's
-  std::deque<Sample> cache_;      // the source's answers at its sample times, sorted
+  std::vector<Sample> cache_;     // from cache_start_ on: the source's answers at its sample times, sorted
+  std::size_t cache_start_ = 0;   // cache_[0, cache_start_): forgotten, dropped once they outgrow the rest
   const MotionSource* cache_source_ = nullptr;
   TimeNs cache_begin_ = 0;
   std::vector<TimeNs> times_;      // scratch: sample times
