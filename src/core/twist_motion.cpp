@@ -99,16 +99,38 @@ double lineTestLimit(double dof) {
 }
 
 /// The k-th smallest (from 0) of values[0, n), which is what std::nth_element puts at k (the values are
-/// never NaN), found without nth_element's hard-to-predict branches: three-way partitions around a median
-/// of three, each copying the values into the half of `buffer` (resized to 2 n) that was not read.
-double kthSmallest(const double* values, std::size_t n, std::size_t k, std::vector<double>& buffer) {
+/// never NaN, nor -0: the k-th smallest is one value, bit for bit), found without nth_element's
+/// hard-to-predict branches: three-way partitions, each copying the values into the half of `buffer`
+/// (resized to 2 n) that was not read. The first around `guess` unless it is NaN (the last sweep's
+/// median of the same kind of values, which most often splits them next to k), then around a median of
+/// three; the least or the largest in one pass. The result does not depend on the pivots; `guess` is
+/// set to it.
+double kthSmallest(const double* values, std::size_t n, std::size_t k, std::vector<double>& buffer,
+                   double& guess) {
   buffer.resize(2 * n);
   double* const halves[2] = {buffer.data(), buffer.data() + n};
+  bool guessed = !std::isnan(guess);
   for (int half = 0;; half = 1 - half) {
-    const double a = values[0], b = values[n / 2], c = values[n - 1];
-    const double pivot = std::max(std::min(a, b), std::min(std::max(a, b), c));
+    if (k == 0 || k + 1 == n) {
+      double extreme = values[0];
+      if (k == 0) {
+        for (std::size_t i = 1; i < n; ++i)
+          extreme = std::min(extreme, values[i]);
+      } else {
+        for (std::size_t i = 1; i < n; ++i)
+          extreme = std::max(extreme, values[i]);
+      }
+      return guess = extreme;
+    }
+    double pivot = guess;
+    if (!guessed) {
+      const double a = values[0], b = values[n / 2], c = values[n - 1];
+      pivot = std::max(std::min(a, b), std::min(std::max(a, b), c));
+    }
+    guessed = false;
     // Smaller values to the front, larger to the back; each value is written to both ends of the gap
-    // between them and kept where the comparisons say. The gap ends up as the values equal to the pivot.
+    // between them and kept where the comparisons say. The gap ends up as the values equal to the pivot
+    // (none: a guess not among them).
     double* const to = halves[half];
     std::size_t below = 0, above = n;
     for (std::size_t i = 0; i < n; ++i) {
@@ -126,7 +148,7 @@ double kthSmallest(const double* values, std::size_t n, std::size_t k, std::vect
       n -= above;
       values = to + above;
     } else {
-      return pivot;
+      return guess = pivot;
     }
   }
 }
@@ -347,7 +369,7 @@ void TwistMotion::estimateNoise() {
   const std::size_t count = means_.size();
   noise_.setZero();
   // The floor: twist differences that move a point by less than 0.01 mm over a typical interval.
-  typical_ = kthSmallest(durations_.data(), count, count / 2, scratch_);
+  typical_ = kthSmallest(durations_.data(), count, count / 2, scratch_, typical_guess_);
   floor_.head<3>().setConstant(kFloorDisplacement / typical_);
   floor_.tail<3>().setConstant(kFloorAngle / typical_);
   noisy_.fill(false);
@@ -448,7 +470,8 @@ void TwistMotion::estimateNoise() {
     const double exact_below = kNoisyFloor * floor_[static_cast<int>(c)] * kLeastOfKinds;
     double least = INFINITY;
     for (std::size_t kind = 3; kind-- > 0 && !(least <= exact_below);)
-      least = std::min(least, kthSmallest(&minima_[(kind * 6 + c) * scored], scored, middle, scratch_) /
+      least = std::min(least, kthSmallest(&minima_[(kind * 6 + c) * scored], scored, middle, scratch_,
+                                              residual_guesses_[kind * 6 + c]) /
                                   kResidualMedians[kind]);
     noise_[static_cast<int>(c)] = least / kLeastOfKinds;
   }
@@ -460,7 +483,7 @@ void TwistMotion::estimateNoise() {
       continue;  // exact: its typical size is not needed
     for (std::size_t k = 0; k < count; ++k)
       magnitudes_[k] = std::abs(means_[k][static_cast<int>(c)]);
-    const double typical_size = kthSmallest(magnitudes_.data(), count, count / 2, scratch_);
+    const double typical_size = kthSmallest(magnitudes_.data(), count, count / 2, scratch_, size_guesses_[c]);
     noisy_[c] = noise_[static_cast<int>(c)] > std::max(kNoisyFloor * floor_[static_cast<int>(c)], kNoiseShare * typical_size);
   }
 }

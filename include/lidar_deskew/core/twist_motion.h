@@ -161,6 +161,12 @@ class TwistMotion final : public MotionSource {
   double fastest_change_ = 0.0;  // [m/s^2] largest |slope| of a piece, its angular part times 10 m
   bool screws_ = false;
   std::vector<double> scratch_;  // estimateNoise()'s buffer for medians
+  /// estimateNoise()'s last medians, its first pivots (any value gives the same medians): of the
+  /// intervals' durations, of the smallest residuals per kind and component (kind * 6 + c), of the
+  /// means' magnitudes per component.
+  double typical_guess_ = 0.0;
+  std::array<double, 18> residual_guesses_{};
+  std::array<double, 6> size_guesses_{};
   std::vector<double> minima_;   // estimateNoise()'s smallest residuals per interval, a column per kind and component
   std::vector<Twist> step_, chord_, curve_;  // estimateNoise()'s residuals per stencil
   std::vector<TimeNs> doubled_centres_;       // estimateNoise()'s interval mid times [ns] times two
