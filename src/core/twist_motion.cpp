@@ -98,58 +98,74 @@ double lineTestLimit(double dof) {
   return dof * root * root * root;
 }
 
-/// The k-th smallest (from 0) of values[0, n), which is what std::nth_element puts at k (the values are
-/// never NaN, nor -0: the k-th smallest is one value, bit for bit), found without nth_element's
-/// hard-to-predict branches: three-way partitions, each copying the values into the half of `buffer`
-/// (resized to 2 n) that was not read. The first around `guess` unless it is NaN (the last sweep's
-/// median of the same kind of values, which most often splits them next to k), then around a median of
-/// three; the least or the largest in one pass. The result does not depend on the pivots; `guess` is
-/// set to it.
-double kthSmallest(const double* values, std::size_t n, std::size_t k, std::vector<double>& buffer,
+/// The least (k = 0) or the largest value of read(0) .. read(n - 1).
+template <typename Read>
+double extremeOf(std::size_t n, std::size_t k, const Read& read) {
+  double extreme = read(0);
+  if (k == 0) {
+    for (std::size_t i = 1; i < n; ++i)
+      extreme = std::min(extreme, read(i));
+  } else {
+    for (std::size_t i = 1; i < n; ++i)
+      extreme = std::max(extreme, read(i));
+  }
+  return extreme;
+}
+
+/// Smaller values of read(0) .. read(n - 1) than `pivot` to to[0, below), larger to to[above, n); each
+/// value is written to both ends of the gap between them and kept where the comparisons say. The gap
+/// ends up as the values equal to the pivot (none: a pivot not among them).
+template <typename Read>
+void partition(std::size_t n, const Read& read, double pivot, double* to, std::size_t& below,
+               std::size_t& above) {
+  below = 0;
+  above = n;
+  for (std::size_t i = 0; i < n; ++i) {
+    const double value = read(i);
+    to[below] = value;
+    to[above - 1] = value;
+    below += value < pivot ? 1 : 0;
+    above -= pivot < value ? 1 : 0;
+  }
+}
+
+/// The k-th smallest (from 0) of read(0) .. read(n - 1), which is what std::nth_element puts at k (the
+/// values are never NaN, nor -0: the k-th smallest is one value, bit for bit), found without
+/// nth_element's hard-to-predict branches: three-way partitions, each copying the values into the half
+/// of `buffer` (resized to 2 n) that was not read. The first around `guess` unless it is NaN (the last
+/// sweep's median of the same kind of values, which most often splits them next to k), then around a
+/// median of three; the least or the largest in one pass. The result does not depend on the pivots;
+/// `guess` is set to it. `read` is called in the first pass only.
+template <typename Read>
+double kthSmallest(std::size_t n, std::size_t k, const Read& read, std::vector<double>& buffer,
                    double& guess) {
+  if (k == 0 || k + 1 == n)
+    return guess = extremeOf(n, k, read);
   buffer.resize(2 * n);
   double* const halves[2] = {buffer.data(), buffer.data() + n};
-  bool guessed = !std::isnan(guess);
-  for (int half = 0;; half = 1 - half) {
-    if (k == 0 || k + 1 == n) {
-      double extreme = values[0];
-      if (k == 0) {
-        for (std::size_t i = 1; i < n; ++i)
-          extreme = std::min(extreme, values[i]);
-      } else {
-        for (std::size_t i = 1; i < n; ++i)
-          extreme = std::max(extreme, values[i]);
-      }
-      return guess = extreme;
-    }
-    double pivot = guess;
-    if (!guessed) {
-      const double a = values[0], b = values[n / 2], c = values[n - 1];
-      pivot = std::max(std::min(a, b), std::min(std::max(a, b), c));
-    }
-    guessed = false;
-    // Smaller values to the front, larger to the back; each value is written to both ends of the gap
-    // between them and kept where the comparisons say. The gap ends up as the values equal to the pivot
-    // (none: a guess not among them).
-    double* const to = halves[half];
-    std::size_t below = 0, above = n;
-    for (std::size_t i = 0; i < n; ++i) {
-      const double value = values[i];
-      to[below] = value;
-      to[above - 1] = value;
-      below += value < pivot ? 1 : 0;
-      above -= pivot < value ? 1 : 0;
-    }
+  const auto medianOfThree = [](double a, double b, double c) {
+    return std::max(std::min(a, b), std::min(std::max(a, b), c));
+  };
+  double pivot = std::isnan(guess) ? medianOfThree(read(0), read(n / 2), read(n - 1)) : guess;
+  std::size_t below, above;
+  partition(n, read, pivot, halves[0], below, above);
+  const double* values = halves[0];
+  for (int half = 1;; half = 1 - half) {
     if (k < below) {
       n = below;
-      values = to;
     } else if (k >= above) {
       k -= above;
       n -= above;
-      values = to + above;
+      values += above;
     } else {
       return guess = pivot;
     }
+    const auto at = [values](std::size_t i) { return values[i]; };
+    if (k == 0 || k + 1 == n)
+      return guess = extremeOf(n, k, at);
+    pivot = medianOfThree(values[0], values[n / 2], values[n - 1]);
+    partition(n, at, pivot, halves[half], below, above);
+    values = halves[half];
   }
 }
 
@@ -369,7 +385,8 @@ void TwistMotion::estimateNoise() {
   const std::size_t count = means_.size();
   noise_.setZero();
   // The floor: twist differences that move a point by less than 0.01 mm over a typical interval.
-  typical_ = kthSmallest(durations_.data(), count, count / 2, scratch_, typical_guess_);
+  const auto duration = [this](std::size_t k) { return durations_[k]; };
+  typical_ = kthSmallest(count, count / 2, duration, scratch_, typical_guess_);
   floor_.head<3>().setConstant(kFloorDisplacement / typical_);
   floor_.tail<3>().setConstant(kFloorAngle / typical_);
   noisy_.fill(false);
@@ -448,42 +465,36 @@ void TwistMotion::estimateNoise() {
       kept.residual_to = sample(j + 6).time;
     }
   }
-  // Each kind's estimate is the median of its smallest residuals (a column of minima_ per component and
-  // kind), and the noise the least of the three. A kind that holds the true twist on most intervals
-  // gives the noise; one that does not gives more (a turn rate stepping every other sample holds only
-  // the steps, with quantised or jittered samples). Taking the least errs towards less noise, which
-  // smooths less: towards tf's line. (The smallest of all eleven residuals, one
-  // median, took a stepping turn rate for noise 8 times its own: only one of the eleven held it.)
+  // Each kind's estimate is the median of its smallest residuals (per component, read from the scored
+  // samples as the median takes them), and the noise the least of the three. A kind that holds the true
+  // twist on most intervals gives the noise; one that does not gives more (a turn rate stepping every
+  // other sample holds only the steps, with quantised or jittered samples). Taking the least errs towards
+  // less noise, which smooths less: towards tf's line. (The smallest of all eleven residuals, one median,
+  // took a stepping turn rate for noise 8 times its own: only one of the eleven held it.)
   const std::size_t scored = count - 10;
-  minima_.resize(18 * scored);
-  for (std::size_t j = 5; j + 6 <= count; ++j) {
-    for (std::size_t kind = 0; kind < 3; ++kind) {
-      const Twist& e = sample(j).residual[kind];
-      for (std::size_t c = 0; c < 6; ++c)
-        minima_[(kind * 6 + c) * scored + j - 5] = e[static_cast<int>(c)];
-    }
-  }
   const std::size_t middle = scored / 2;
   // Quartics first, which hold a smooth motion: once a kind puts the noise below what is smoothed
   // (kNoisyFloor floors), the component is exact whatever the others say, and they are not computed.
   for (std::size_t c = 0; c < 6; ++c) {
     const double exact_below = kNoisyFloor * floor_[static_cast<int>(c)] * kLeastOfKinds;
     double least = INFINITY;
-    for (std::size_t kind = 3; kind-- > 0 && !(least <= exact_below);)
-      least = std::min(least, kthSmallest(&minima_[(kind * 6 + c) * scored], scored, middle, scratch_,
-                                              residual_guesses_[kind * 6 + c]) /
-                                  kResidualMedians[kind]);
+    for (std::size_t kind = 3; kind-- > 0 && !(least <= exact_below);) {
+      const auto residual = [&, kind, c](std::size_t j) {
+        return sample(j + 5).residual[kind][static_cast<int>(c)];
+      };
+      least =
+          std::min(least, kthSmallest(scored, middle, residual, scratch_, residual_guesses_[kind * 6 + c]) /
+                              kResidualMedians[kind]);
+    }
     noise_[static_cast<int>(c)] = least / kLeastOfKinds;
   }
   // Noisy: above the floor and above kNoiseShare of the component's typical size (the median of its
   // means' magnitudes). Below, what the simple models leave is taken for the motion's own curvature.
-  magnitudes_.resize(count);
   for (std::size_t c = 0; c < 6; ++c) {
     if (!(noise_[static_cast<int>(c)] > kNoisyFloor * floor_[static_cast<int>(c)]))
       continue;  // exact: its typical size is not needed
-    for (std::size_t k = 0; k < count; ++k)
-      magnitudes_[k] = std::abs(means_[k][static_cast<int>(c)]);
-    const double typical_size = kthSmallest(magnitudes_.data(), count, count / 2, scratch_, size_guesses_[c]);
+    const auto magnitude = [&, c](std::size_t k) { return std::abs(means_[k][static_cast<int>(c)]); };
+    const double typical_size = kthSmallest(count, count / 2, magnitude, scratch_, size_guesses_[c]);
     noisy_[c] = noise_[static_cast<int>(c)] > std::max(kNoisyFloor * floor_[static_cast<int>(c)], kNoiseShare * typical_size);
   }
 }

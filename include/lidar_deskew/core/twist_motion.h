@@ -153,7 +153,6 @@ class TwistMotion final : public MotionSource {
   Twist noise_ = Twist::Zero();
   Twist floor_ = Twist::Zero();
   std::array<bool, 6> noisy_{};  // per component: samples followed, slopes not fitted
-  std::vector<double> magnitudes_;  // estimateNoise()'s scratch: |means| of one component
   std::vector<Piece> pieces_;
   Eigen::Matrix3d end_rotation_;  // fitted pose at end_time_, the last piece's end
   Eigen::Vector3d end_translation_;
@@ -167,7 +166,6 @@ class TwistMotion final : public MotionSource {
   double typical_guess_ = 0.0;
   std::array<double, 18> residual_guesses_{};
   std::array<double, 6> size_guesses_{};
-  std::vector<double> minima_;   // estimateNoise()'s smallest residuals per interval, a column per kind and component
   std::vector<Twist> step_, chord_, curve_;  // estimateNoise()'s residuals per stencil
   std::vector<TimeNs> doubled_centres_;       // estimateNoise()'s interval mid times [ns] times two
 };
