@@ -784,13 +784,18 @@ const MotionSource& TwistMotion::prepare(const MotionSource& raw, TimeNs begin, 
 
   // The intervals the span touches: from the last sample at or before begin to the first at or after end
   // (the look-ahead's samples only inform the noisy fit).
+  // Found by bisection (the samples' times increase): the first is the window's first sample or after
+  // it, the last the closing one or before it.
+  const auto window = samples_.begin(), closing = samples_.begin() + static_cast<std::ptrdiff_t>(closing_);
+  std::size_t first = static_cast<std::size_t>(
+      std::upper_bound(window + 1, closing + 1, begin,
+                       [](TimeNs t, const Sample* sample) { return t < sample->time; }) -
+      window - 1);
+  std::size_t last = static_cast<std::size_t>(
+      std::lower_bound(window + static_cast<std::ptrdiff_t>(first), closing, end,
+                       [](const Sample* sample, TimeNs t) { return sample->time < t; }) -
+      window);
   const std::size_t sweep_samples = closing_ + 1;
-  std::size_t first = 0;
-  while (first + 1 < sweep_samples && sample(first + 1).time <= begin)
-    ++first;
-  std::size_t last = first;
-  while (last + 1 < sweep_samples && sample(last).time < end)
-    ++last;
   if (last == first) {  // a span of one instant on a sample: the interval after it, else before
     if (first + 1 < sweep_samples)
       ++last;
