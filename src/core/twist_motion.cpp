@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <string>
 
 #include "pose_eigen.h"
@@ -278,10 +279,12 @@ bool TwistMotion::gatherSamples(const MotionSource& raw, TimeNs begin, TimeNs en
   const TimeNs horizon = secondsToNs(kFitHorizon);
   look_ahead = std::min(look_ahead, horizon);
   raw.appendSampleTimes(begin - horizon - 1, end + std::max(horizon, look_ahead) + 1, times_);
-  // Sources report their times in order (tf, PoseSamples): sorting is then a check.
-  if (!std::is_sorted(times_.begin(), times_.end()))
+  // Sources report their times in order (tf, PoseSamples): one pass then finds them increasing, else
+  // they are sorted and repeated times dropped.
+  if (std::adjacent_find(times_.begin(), times_.end(), std::greater_equal<TimeNs>()) != times_.end()) {
     std::sort(times_.begin(), times_.end());
-  times_.erase(std::unique(times_.begin(), times_.end()), times_.end());
+    times_.erase(std::unique(times_.begin(), times_.end()), times_.end());
+  }
   const auto after_begin = std::upper_bound(times_.begin(), times_.end(), begin);
   const auto at_end = std::lower_bound(times_.begin(), times_.end(), end);
   if (after_begin == times_.begin() || at_end == times_.end())
