@@ -415,9 +415,9 @@ void TwistMotion::estimateNoise() {
   while (fresh + 6 <= count && keptFor(fresh))
     ++fresh;
   if (fresh + 6 <= count) {
-    // Twice the intervals' mid times [ns]: their differences are exact.
+    // Twice the intervals' mid times [ns]: their differences are exact. Those the stencils below read.
     doubled_centres_.resize(count);
-    for (std::size_t k = 0; k < count; ++k)
+    for (std::size_t k = fresh - 5; k < count; ++k)
       doubled_centres_[k] = sample(k).time + sample(k + 1).time;
     const auto apart = [&](std::size_t a, std::size_t b) {
       return static_cast<double>(doubled_centres_[a] - doubled_centres_[b]);
@@ -436,12 +436,22 @@ void TwistMotion::estimateNoise() {
     for (std::size_t i = fresh - 5; i + 5 < count; ++i) {
       // Point a's weight is the product over b != a of (centre_5 - centre_b) / (centre_a - centre_b), in
       // increasing b (the order fixes its rounding). The twenty quotients do not depend on each other:
-      // divided as one array, two at a time.
+      // divided as one array, two at a time. Their denominators are ten differences and their negations
+      // (centre_b - centre_a, exactly: the integer difference negated, rounded the same; never 0, the
+      // centres increase).
+      double to_last[5], between[5][5];
+      for (std::size_t a = 0; a < 5; ++a) {
+        to_last[a] = apart(i + 5, i + a);
+        for (std::size_t b = a + 1; b < 5; ++b) {
+          between[a][b] = apart(i + a, i + b);
+          between[b][a] = -between[a][b];
+        }
+      }
       Eigen::Array<double, 20, 1> numerators, denominators;
       for (int n = 0; n < 20; ++n) {
-        const std::size_t other = i + static_cast<std::size_t>(kQuarticOther[n]);
-        numerators[n] = apart(i + 5, other);
-        denominators[n] = apart(i + static_cast<std::size_t>(n / 4), other);
+        const int other = kQuarticOther[n];
+        numerators[n] = to_last[other];
+        denominators[n] = between[n / 4][other];
       }
       const Eigen::Array<double, 20, 1> quotients = numerators / denominators;
       Twist prediction = Twist::Zero();
