@@ -319,13 +319,21 @@ bool TwistMotion::gatherSamples(const MotionSource& raw, TimeNs begin, TimeNs en
     } catch (const MotionUnavailable&) {
       return false;
     }
-    Sample answer{times_[i], detail::rotationOf(pose), detail::translationOf(pose), Twist::Zero(), -1};
     if (position == cache_start_ && cache_start_ > 0) {
       position = --cache_start_;
-      cache_[position] = answer;
+    } else if (position == cache_.size()) {
+      cache_.emplace_back();
     } else {
-      cache_.insert(cache_.begin() + static_cast<std::ptrdiff_t>(position), answer);
+      cache_.insert(cache_.begin() + static_cast<std::ptrdiff_t>(position), cache_[position]);
     }
+    // Written in place; nothing computed from it yet (its residuals are read only once computed).
+    Sample& answer = cache_[position];
+    answer.time = times_[i];
+    answer.rotation = detail::rotationOf(pose);
+    answer.translation = detail::translationOf(pose);
+    answer.mean.setZero();
+    answer.mean_until = -1;
+    answer.residual_from = answer.residual_to = -1;
     return true;
   };
   // From the sweep's first sample outwards, stopping where the source no longer answers (a chain's
@@ -821,7 +829,7 @@ const MotionSource& TwistMotion::prepare(const MotionSource& raw, TimeNs begin, 
   Eigen::Vector3d translation = sample(first).translation;
   screws_ = true;
   for (std::size_t j = first; j < last; ++j) {
-    Piece piece;
+    Piece& piece = pieces_.emplace_back();  // built in place
     piece.time = sample(j).time;
     piece.duration = durations_[j];
     Twist mean, slope, curvature;
@@ -864,7 +872,6 @@ const MotionSource& TwistMotion::prepare(const MotionSource& raw, TimeNs begin, 
                                 piece.slope.head<3>().norm() + kKnotReach * piece.slope.tail<3>().norm()});
     piece.rotation = rotation;
     piece.translation = translation;
-    pieces_.push_back(piece);
     // The next piece starts where this one ends.
     Eigen::Matrix3d step_rotation;
     Eigen::Vector3d step_translation;
