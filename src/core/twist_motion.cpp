@@ -343,6 +343,11 @@ bool TwistMotion::gatherSamples(const MotionSource& raw, TimeNs begin, TimeNs en
   while (cached < cache_.size() && cache_[cached].time == times_[first])
     ++cached;  // just after times_[first] when it is cached
   std::size_t low = first + 1;
+  // Most of them are cached one after the other: the walk's steps that find so, in one pass; then the rest.
+  while (low > 0 && cached > cache_start_ && cache_[cached - 1].time == times_[low - 1]) {
+    --cached;
+    --low;
+  }
   while (low > 0) {
     const TimeNs time = times_[low - 1];
     while (cached > cache_start_ && cache_[cached - 1].time > time)
@@ -381,12 +386,12 @@ bool TwistMotion::gatherSamples(const MotionSource& raw, TimeNs begin, TimeNs en
     cache_.erase(cache_.begin(), cache_.begin() + static_cast<std::ptrdiff_t>(cache_start_));
     cache_start_ = 0;
   }
-  samples_.clear();
+  samples_.resize(high - low);
   std::size_t kept = cache_start_;
   for (std::size_t i = low; i < high; ++i) {
     while (cache_[kept].time < times_[i])
       ++kept;
-    samples_.push_back(&cache_[kept]);
+    samples_[i - low] = &cache_[kept];
   }
   closing_ = last - low;
   return samples_.size() >= 2;
