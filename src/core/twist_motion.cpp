@@ -89,9 +89,6 @@ void expCoefficients(double angle, double& a, double& b, double& c) {
   }
 }
 
-/// The quartic stencil's points b != a, for a = 0 to 4 (four each, increasing): its quotients' order.
-constexpr int kQuarticOther[20] = {1, 2, 3, 4, 0, 2, 3, 4, 0, 1, 3, 4, 0, 1, 2, 4, 0, 1, 2, 3};
-
 /// Chi-square quantile for `dof` degrees of freedom at kTestQuantile (Wilson-Hilferty).
 double lineTestLimit(double dof) {
   const double k = 2.0 / (9.0 * dof);
@@ -452,19 +449,20 @@ void TwistMotion::estimateNoise() {
       // divided as one array, two at a time. Their denominators are ten differences and their negations
       // (centre_b - centre_a, exactly: the integer difference negated, rounded the same; never 0, the
       // centres increase).
-      double to_last[5], between[5][5];
-      for (std::size_t a = 0; a < 5; ++a) {
+      double to_last[5];
+      for (std::size_t a = 0; a < 5; ++a)
         to_last[a] = apart(i + 5, i + a);
-        for (std::size_t b = a + 1; b < 5; ++b) {
-          between[a][b] = apart(i + a, i + b);
-          between[b][a] = -between[a][b];
-        }
-      }
+      // Point a's quotients are 4 a to 4 a + 3, with b = 0 .. 4 but a, increasing: b's at 4 a + b - 1
+      // for b > a, at 4 a + b for b < a.
       Eigen::Array<double, 20, 1> numerators, denominators;
-      for (int n = 0; n < 20; ++n) {
-        const int other = kQuarticOther[n];
-        numerators[n] = to_last[other];
-        denominators[n] = between[n / 4][other];
+      for (std::size_t a = 0; a < 5; ++a) {
+        for (std::size_t b = a + 1; b < 5; ++b) {
+          const double difference = apart(i + a, i + b);
+          numerators[static_cast<Eigen::Index>(4 * a + b - 1)] = to_last[b];
+          denominators[static_cast<Eigen::Index>(4 * a + b - 1)] = difference;
+          numerators[static_cast<Eigen::Index>(4 * b + a)] = to_last[a];
+          denominators[static_cast<Eigen::Index>(4 * b + a)] = -difference;
+        }
       }
       const Eigen::Array<double, 20, 1> quotients = numerators / denominators;
       Twist prediction = Twist::Zero();
