@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <string>
 
 #include "pose_eigen.h"
@@ -88,9 +89,6 @@ void expCoefficients(double angle, double& a, double& b, double& c) {
   }
 }
 
-/// The quartic stencil's points b != a, for a = 0 to 4 (four each, increasing): its quotients' order.
-constexpr int kQuarticOther[20] = {1, 2, 3, 4, 0, 2, 3, 4, 0, 1, 3, 4, 0, 1, 2, 4, 0, 1, 2, 3};
-
 /// Chi-square quantile for `dof` degrees of freedom at kTestQuantile (Wilson-Hilferty).
 double lineTestLimit(double dof) {
   const double k = 2.0 / (9.0 * dof);
@@ -98,36 +96,74 @@ double lineTestLimit(double dof) {
   return dof * root * root * root;
 }
 
-/// The k-th smallest (from 0) of values[0, n), which is what std::nth_element puts at k (the values are
-/// never NaN), found without nth_element's hard-to-predict branches: three-way partitions around a median
-/// of three, each copying the values into the half of `buffer` (resized to 2 n) that was not read.
-double kthSmallest(const double* values, std::size_t n, std::size_t k, std::vector<double>& buffer) {
+/// The least (k = 0) or the largest value of read(0) .. read(n - 1).
+template <typename Read>
+double extremeOf(std::size_t n, std::size_t k, const Read& read) {
+  double extreme = read(0);
+  if (k == 0) {
+    for (std::size_t i = 1; i < n; ++i)
+      extreme = std::min(extreme, read(i));
+  } else {
+    for (std::size_t i = 1; i < n; ++i)
+      extreme = std::max(extreme, read(i));
+  }
+  return extreme;
+}
+
+/// Smaller values of read(0) .. read(n - 1) than `pivot` to to[0, below), larger to to[above, n); each
+/// value is written to both ends of the gap between them and kept where the comparisons say. The gap
+/// ends up as the values equal to the pivot (none: a pivot not among them).
+template <typename Read>
+void partition(std::size_t n, const Read& read, double pivot, double* to, std::size_t& below,
+               std::size_t& above) {
+  below = 0;
+  above = n;
+  for (std::size_t i = 0; i < n; ++i) {
+    const double value = read(i);
+    to[below] = value;
+    to[above - 1] = value;
+    below += value < pivot ? 1 : 0;
+    above -= pivot < value ? 1 : 0;
+  }
+}
+
+/// The k-th smallest (from 0) of read(0) .. read(n - 1), which is what std::nth_element puts at k (the
+/// values are never NaN, nor -0: the k-th smallest is one value, bit for bit), found without
+/// nth_element's hard-to-predict branches: three-way partitions, each copying the values into the half
+/// of `buffer` (resized to 2 n) that was not read. The first around `guess` unless it is NaN (the last
+/// sweep's median of the same kind of values, which most often splits them next to k), then around a
+/// median of three; the least or the largest in one pass. The result does not depend on the pivots;
+/// `guess` is set to it. `read` is called in the first pass only.
+template <typename Read>
+double kthSmallest(std::size_t n, std::size_t k, const Read& read, std::vector<double>& buffer,
+                   double& guess) {
+  if (k == 0 || k + 1 == n)
+    return guess = extremeOf(n, k, read);
   buffer.resize(2 * n);
   double* const halves[2] = {buffer.data(), buffer.data() + n};
-  for (int half = 0;; half = 1 - half) {
-    const double a = values[0], b = values[n / 2], c = values[n - 1];
-    const double pivot = std::max(std::min(a, b), std::min(std::max(a, b), c));
-    // Smaller values to the front, larger to the back; each value is written to both ends of the gap
-    // between them and kept where the comparisons say. The gap ends up as the values equal to the pivot.
-    double* const to = halves[half];
-    std::size_t below = 0, above = n;
-    for (std::size_t i = 0; i < n; ++i) {
-      const double value = values[i];
-      to[below] = value;
-      to[above - 1] = value;
-      below += value < pivot ? 1 : 0;
-      above -= pivot < value ? 1 : 0;
-    }
+  const auto medianOfThree = [](double a, double b, double c) {
+    return std::max(std::min(a, b), std::min(std::max(a, b), c));
+  };
+  double pivot = std::isnan(guess) ? medianOfThree(read(0), read(n / 2), read(n - 1)) : guess;
+  std::size_t below, above;
+  partition(n, read, pivot, halves[0], below, above);
+  const double* values = halves[0];
+  for (int half = 1;; half = 1 - half) {
     if (k < below) {
       n = below;
-      values = to;
     } else if (k >= above) {
       k -= above;
       n -= above;
-      values = to + above;
+      values += above;
     } else {
-      return pivot;
+      return guess = pivot;
     }
+    const auto at = [values](std::size_t i) { return values[i]; };
+    if (k == 0 || k + 1 == n)
+      return guess = extremeOf(n, k, at);
+    pivot = medianOfThree(values[0], values[n / 2], values[n - 1]);
+    partition(n, at, pivot, halves[half], below, above);
+    values = halves[half];
   }
 }
 
@@ -227,9 +263,11 @@ Twist TwistMotion::Piece::omega(double tau) const {
   return result;
 }
 
-std::deque<TwistMotion::Sample>::iterator TwistMotion::cachedAt(TimeNs time) {
-  return std::lower_bound(cache_.begin(), cache_.end(), time,
-                          [](const Sample& sample, TimeNs t) { return sample.time < t; });
+std::size_t TwistMotion::cachedAt(TimeNs time) const {
+  return static_cast<std::size_t>(
+      std::lower_bound(cache_.begin() + static_cast<std::ptrdiff_t>(cache_start_), cache_.end(), time,
+                       [](const Sample& sample, TimeNs t) { return sample.time < t; }) -
+      cache_.begin());
 }
 
 bool TwistMotion::gatherSamples(const MotionSource& raw, TimeNs begin, TimeNs end, TimeNs look_ahead) {
@@ -238,10 +276,12 @@ bool TwistMotion::gatherSamples(const MotionSource& raw, TimeNs begin, TimeNs en
   const TimeNs horizon = secondsToNs(kFitHorizon);
   look_ahead = std::min(look_ahead, horizon);
   raw.appendSampleTimes(begin - horizon - 1, end + std::max(horizon, look_ahead) + 1, times_);
-  // Sources report their times in order (tf, PoseSamples): sorting is then a check.
-  if (!std::is_sorted(times_.begin(), times_.end()))
+  // Sources report their times in order (tf, PoseSamples): one pass then finds them increasing, else
+  // they are sorted and repeated times dropped.
+  if (std::adjacent_find(times_.begin(), times_.end(), std::greater_equal<TimeNs>()) != times_.end()) {
     std::sort(times_.begin(), times_.end());
-  times_.erase(std::unique(times_.begin(), times_.end()), times_.end());
+    times_.erase(std::unique(times_.begin(), times_.end()), times_.end());
+  }
   const auto after_begin = std::upper_bound(times_.begin(), times_.end(), begin);
   const auto at_end = std::lower_bound(times_.begin(), times_.end(), end);
   if (after_begin == times_.begin() || at_end == times_.end())
@@ -258,35 +298,58 @@ bool TwistMotion::gatherSamples(const MotionSource& raw, TimeNs begin, TimeNs en
 
   // The source's answer at a sample time does not change once given: answers are kept for the next
   // sweeps (which share most of their window), until time goes back (a bag loop, a clock reset).
-  if (begin < cache_begin_ || &raw != cache_source_)
+  if (begin < cache_begin_ || &raw != cache_source_) {
     cache_.clear();
+    cache_start_ = 0;
+  }
   cache_begin_ = begin;
   cache_source_ = &raw;
   // The queries walk outwards from the sweep's first sample, and the cache along with them by index
-  // (most times are cached: only the new ones are asked and inserted where they sort).
-  const auto ask = [&](std::size_t i, std::size_t position) {
+  // (most times are cached: only the new ones are asked and inserted where they sort). The cache's
+  // samples are cache_[cache_start_, size): one inserted at its front takes the slot before it when
+  // there is one. `position` is where it sorts; returns false when the source does not answer, else
+  // sets `position` to where it was put.
+  const auto ask = [&](std::size_t i, std::size_t& position) {
     mrpt::poses::CPose3D pose;
     try {
       pose = raw.basePose(times_[i]);
     } catch (const MotionUnavailable&) {
       return false;
     }
-    cache_.insert(cache_.begin() + static_cast<std::ptrdiff_t>(position),
-                  {times_[i], detail::rotationOf(pose), detail::translationOf(pose), Twist::Zero(), -1});
+    if (position == cache_start_ && cache_start_ > 0) {
+      position = --cache_start_;
+    } else if (position == cache_.size()) {
+      cache_.emplace_back();
+    } else {
+      cache_.insert(cache_.begin() + static_cast<std::ptrdiff_t>(position), cache_[position]);
+    }
+    // Written in place; nothing computed from it yet (its residuals are read only once computed).
+    Sample& answer = cache_[position];
+    answer.time = times_[i];
+    answer.rotation = detail::rotationOf(pose);
+    answer.translation = detail::translationOf(pose);
+    answer.mean.setZero();
+    answer.mean_until = -1;
+    answer.residual_from = answer.residual_to = -1;
     return true;
   };
   // From the sweep's first sample outwards, stopping where the source no longer answers (a chain's
   // links end at different times): times_[low, high) are answered. `cached`: the cache's samples from
   // there on are at or after the last time answered (before it going down, after it going up).
-  std::size_t cached = static_cast<std::size_t>(cachedAt(times_[first]) - cache_.begin());
+  std::size_t cached = cachedAt(times_[first]);
   while (cached < cache_.size() && cache_[cached].time == times_[first])
     ++cached;  // just after times_[first] when it is cached
   std::size_t low = first + 1;
+  // Most of them are cached one after the other: the walk's steps that find so, in one pass; then the rest.
+  while (low > 0 && cached > cache_start_ && cache_[cached - 1].time == times_[low - 1]) {
+    --cached;
+    --low;
+  }
   while (low > 0) {
     const TimeNs time = times_[low - 1];
-    while (cached > 0 && cache_[cached - 1].time > time)
+    while (cached > cache_start_ && cache_[cached - 1].time > time)
       --cached;  // no longer a sample time of the source (skipped, as before)
-    if (cached > 0 && cache_[cached - 1].time == time) {
+    if (cached > cache_start_ && cache_[cached - 1].time == time) {
       --cached;
     } else if (!ask(low - 1, cached)) {
       if (low - 1 == first)
@@ -295,7 +358,7 @@ bool TwistMotion::gatherSamples(const MotionSource& raw, TimeNs begin, TimeNs en
     }
     --low;
   }
-  cached = static_cast<std::size_t>(cachedAt(times_[first] + 1) - cache_.begin());
+  cached = cachedAt(times_[first] + 1);
   std::size_t high = first + 1;
   while (high < times_.size()) {
     const TimeNs time = times_[high];
@@ -312,15 +375,20 @@ bool TwistMotion::gatherSamples(const MotionSource& raw, TimeNs begin, TimeNs en
     }
     ++high;
   }
-  // Forget what no later sweep's window reaches, then point at the window's samples in the cache (no
-  // more insertions until the next prepare(): the pointers stay valid).
-  cache_.erase(cache_.begin(), cachedAt(times_[low]));
-  samples_.clear();
-  auto kept = cache_.begin();
+  // Forget what no later sweep's window reaches (by moving the cache's start; its dead front is dropped
+  // once it outgrows the live samples), then point at the window's samples in the cache (no more
+  // insertions until the next prepare(): the pointers stay valid).
+  cache_start_ = cachedAt(times_[low]);
+  if (cache_start_ > 0 && cache_start_ >= cache_.size() - cache_start_) {
+    cache_.erase(cache_.begin(), cache_.begin() + static_cast<std::ptrdiff_t>(cache_start_));
+    cache_start_ = 0;
+  }
+  samples_.resize(high - low);
+  std::size_t kept = cache_start_;
   for (std::size_t i = low; i < high; ++i) {
-    while (kept->time < times_[i])
+    while (cache_[kept].time < times_[i])
       ++kept;
-    samples_.push_back(&*kept);
+    samples_[i - low] = &cache_[kept];
   }
   closing_ = last - low;
   return samples_.size() >= 2;
@@ -330,7 +398,8 @@ void TwistMotion::estimateNoise() {
   const std::size_t count = means_.size();
   noise_.setZero();
   // The floor: twist differences that move a point by less than 0.01 mm over a typical interval.
-  typical_ = kthSmallest(durations_.data(), count, count / 2, scratch_);
+  const auto duration = [this](std::size_t k) { return durations_[k]; };
+  typical_ = kthSmallest(count, count / 2, duration, scratch_, typical_guess_);
   floor_.head<3>().setConstant(kFloorDisplacement / typical_);
   floor_.tail<3>().setConstant(kFloorAngle / typical_);
   noisy_.fill(false);
@@ -356,9 +425,9 @@ void TwistMotion::estimateNoise() {
   while (fresh + 6 <= count && keptFor(fresh))
     ++fresh;
   if (fresh + 6 <= count) {
-    // Twice the intervals' mid times [ns]: their differences are exact.
+    // Twice the intervals' mid times [ns]: their differences are exact. Those the stencils below read.
     doubled_centres_.resize(count);
-    for (std::size_t k = 0; k < count; ++k)
+    for (std::size_t k = fresh - 5; k < count; ++k)
       doubled_centres_[k] = sample(k).time + sample(k + 1).time;
     const auto apart = [&](std::size_t a, std::size_t b) {
       return static_cast<double>(doubled_centres_[a] - doubled_centres_[b]);
@@ -377,12 +446,23 @@ void TwistMotion::estimateNoise() {
     for (std::size_t i = fresh - 5; i + 5 < count; ++i) {
       // Point a's weight is the product over b != a of (centre_5 - centre_b) / (centre_a - centre_b), in
       // increasing b (the order fixes its rounding). The twenty quotients do not depend on each other:
-      // divided as one array, two at a time.
+      // divided as one array, two at a time. Their denominators are ten differences and their negations
+      // (centre_b - centre_a, exactly: the integer difference negated, rounded the same; never 0, the
+      // centres increase).
+      double to_last[5];
+      for (std::size_t a = 0; a < 5; ++a)
+        to_last[a] = apart(i + 5, i + a);
+      // Point a's quotients are 4 a to 4 a + 3, with b = 0 .. 4 but a, increasing: b's at 4 a + b - 1
+      // for b > a, at 4 a + b for b < a.
       Eigen::Array<double, 20, 1> numerators, denominators;
-      for (int n = 0; n < 20; ++n) {
-        const std::size_t other = i + static_cast<std::size_t>(kQuarticOther[n]);
-        numerators[n] = apart(i + 5, other);
-        denominators[n] = apart(i + static_cast<std::size_t>(n / 4), other);
+      for (std::size_t a = 0; a < 5; ++a) {
+        for (std::size_t b = a + 1; b < 5; ++b) {
+          const double difference = apart(i + a, i + b);
+          numerators[static_cast<Eigen::Index>(4 * a + b - 1)] = to_last[b];
+          denominators[static_cast<Eigen::Index>(4 * a + b - 1)] = difference;
+          numerators[static_cast<Eigen::Index>(4 * b + a)] = to_last[a];
+          denominators[static_cast<Eigen::Index>(4 * b + a)] = -difference;
+        }
       }
       const Eigen::Array<double, 20, 1> quotients = numerators / denominators;
       Twist prediction = Twist::Zero();
@@ -409,41 +489,36 @@ void TwistMotion::estimateNoise() {
       kept.residual_to = sample(j + 6).time;
     }
   }
-  // Each kind's estimate is the median of its smallest residuals (a column of minima_ per component and
-  // kind), and the noise the least of the three. A kind that holds the true twist on most intervals
-  // gives the noise; one that does not gives more (a turn rate stepping every other sample holds only
-  // the steps, with quantised or jittered samples). Taking the least errs towards less noise, which
-  // smooths less: towards tf's line. (The smallest of all eleven residuals, one
-  // median, took a stepping turn rate for noise 8 times its own: only one of the eleven held it.)
+  // Each kind's estimate is the median of its smallest residuals (per component, read from the scored
+  // samples as the median takes them), and the noise the least of the three. A kind that holds the true
+  // twist on most intervals gives the noise; one that does not gives more (a turn rate stepping every
+  // other sample holds only the steps, with quantised or jittered samples). Taking the least errs towards
+  // less noise, which smooths less: towards tf's line. (The smallest of all eleven residuals, one median,
+  // took a stepping turn rate for noise 8 times its own: only one of the eleven held it.)
   const std::size_t scored = count - 10;
-  minima_.resize(18 * scored);
-  for (std::size_t j = 5; j + 6 <= count; ++j) {
-    for (std::size_t kind = 0; kind < 3; ++kind) {
-      const Twist& e = sample(j).residual[kind];
-      for (std::size_t c = 0; c < 6; ++c)
-        minima_[(kind * 6 + c) * scored + j - 5] = e[static_cast<int>(c)];
-    }
-  }
   const std::size_t middle = scored / 2;
   // Quartics first, which hold a smooth motion: once a kind puts the noise below what is smoothed
   // (kNoisyFloor floors), the component is exact whatever the others say, and they are not computed.
   for (std::size_t c = 0; c < 6; ++c) {
     const double exact_below = kNoisyFloor * floor_[static_cast<int>(c)] * kLeastOfKinds;
     double least = INFINITY;
-    for (std::size_t kind = 3; kind-- > 0 && !(least <= exact_below);)
-      least = std::min(least, kthSmallest(&minima_[(kind * 6 + c) * scored], scored, middle, scratch_) /
-                                  kResidualMedians[kind]);
+    for (std::size_t kind = 3; kind-- > 0 && !(least <= exact_below);) {
+      const auto residual = [&, kind, c](std::size_t j) {
+        return sample(j + 5).residual[kind][static_cast<int>(c)];
+      };
+      least =
+          std::min(least, kthSmallest(scored, middle, residual, scratch_, residual_guesses_[kind * 6 + c]) /
+                              kResidualMedians[kind]);
+    }
     noise_[static_cast<int>(c)] = least / kLeastOfKinds;
   }
   // Noisy: above the floor and above kNoiseShare of the component's typical size (the median of its
   // means' magnitudes). Below, what the simple models leave is taken for the motion's own curvature.
-  magnitudes_.resize(count);
   for (std::size_t c = 0; c < 6; ++c) {
     if (!(noise_[static_cast<int>(c)] > kNoisyFloor * floor_[static_cast<int>(c)]))
       continue;  // exact: its typical size is not needed
-    for (std::size_t k = 0; k < count; ++k)
-      magnitudes_[k] = std::abs(means_[k][static_cast<int>(c)]);
-    const double typical_size = kthSmallest(magnitudes_.data(), count, count / 2, scratch_);
+    const auto magnitude = [&, c](std::size_t k) { return std::abs(means_[k][static_cast<int>(c)]); };
+    const double typical_size = kthSmallest(count, count / 2, magnitude, scratch_, size_guesses_[c]);
     noisy_[c] = noise_[static_cast<int>(c)] > std::max(kNoisyFloor * floor_[static_cast<int>(c)], kNoiseShare * typical_size);
   }
 }
@@ -733,13 +808,18 @@ const MotionSource& TwistMotion::prepare(const MotionSource& raw, TimeNs begin, 
 
   // The intervals the span touches: from the last sample at or before begin to the first at or after end
   // (the look-ahead's samples only inform the noisy fit).
+  // Found by bisection (the samples' times increase): the first is the window's first sample or after
+  // it, the last the closing one or before it.
+  const auto window = samples_.begin(), closing = samples_.begin() + static_cast<std::ptrdiff_t>(closing_);
+  std::size_t first = static_cast<std::size_t>(
+      std::upper_bound(window + 1, closing + 1, begin,
+                       [](TimeNs t, const Sample* sample) { return t < sample->time; }) -
+      window - 1);
+  std::size_t last = static_cast<std::size_t>(
+      std::lower_bound(window + static_cast<std::ptrdiff_t>(first), closing, end,
+                       [](const Sample* sample, TimeNs t) { return sample->time < t; }) -
+      window);
   const std::size_t sweep_samples = closing_ + 1;
-  std::size_t first = 0;
-  while (first + 1 < sweep_samples && sample(first + 1).time <= begin)
-    ++first;
-  std::size_t last = first;
-  while (last + 1 < sweep_samples && sample(last).time < end)
-    ++last;
   if (last == first) {  // a span of one instant on a sample: the interval after it, else before
     if (first + 1 < sweep_samples)
       ++last;
@@ -752,7 +832,7 @@ const MotionSource& TwistMotion::prepare(const MotionSource& raw, TimeNs begin, 
   Eigen::Vector3d translation = sample(first).translation;
   screws_ = true;
   for (std::size_t j = first; j < last; ++j) {
-    Piece piece;
+    Piece& piece = pieces_.emplace_back();  // built in place
     piece.time = sample(j).time;
     piece.duration = durations_[j];
     Twist mean, slope, curvature;
@@ -795,7 +875,6 @@ const MotionSource& TwistMotion::prepare(const MotionSource& raw, TimeNs begin, 
                                 piece.slope.head<3>().norm() + kKnotReach * piece.slope.tail<3>().norm()});
     piece.rotation = rotation;
     piece.translation = translation;
-    pieces_.push_back(piece);
     // The next piece starts where this one ends.
     Eigen::Matrix3d step_rotation;
     Eigen::Vector3d step_translation;

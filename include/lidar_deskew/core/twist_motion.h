@@ -5,7 +5,6 @@
 #include <Eigen/Core>
 
 #include <array>
-#include <deque>
 #include <vector>
 
 #include "lidar_deskew/core/motion.h"
@@ -114,8 +113,8 @@ class TwistMotion final : public MotionSource {
     Twist omega(double tau) const;
   };
 
-  /// The first cached sample at or after `time`.
-  std::deque<Sample>::iterator cachedAt(TimeNs time);
+  /// The index in cache_ of the first cached sample at or after `time`.
+  std::size_t cachedAt(TimeNs time) const;
   /// The k-th sample of the window prepare() fits over (kept in cache_).
   Sample& sample(std::size_t k) const { return *samples_[k]; }
   bool gatherSamples(const MotionSource& raw, TimeNs begin, TimeNs end, TimeNs look_ahead);
@@ -143,7 +142,8 @@ class TwistMotion final : public MotionSource {
   const MotionSource* raw_ = nullptr;
   std::vector<Sample*> samples_;  // the window's samples, in cache_ (stable until the next prepare())
   std::size_t closing_ = 0;       // samples_[closing_] closes the sweep; later ones: the look-ahead's
-  std::deque<Sample> cache_;      // the source's answers at its sample times, sorted
+  std::vector<Sample> cache_;     // from cache_start_ on: the source's answers at its sample times, sorted
+  std::size_t cache_start_ = 0;   // cache_[0, cache_start_): forgotten, dropped once they outgrow the rest
   const MotionSource* cache_source_ = nullptr;
   TimeNs cache_begin_ = 0;
   std::vector<TimeNs> times_;      // scratch: sample times
@@ -153,7 +153,6 @@ class TwistMotion final : public MotionSource {
   Twist noise_ = Twist::Zero();
   Twist floor_ = Twist::Zero();
   std::array<bool, 6> noisy_{};  // per component: samples followed, slopes not fitted
-  std::vector<double> magnitudes_;  // estimateNoise()'s scratch: |means| of one component
   std::vector<Piece> pieces_;
   Eigen::Matrix3d end_rotation_;  // fitted pose at end_time_, the last piece's end
   Eigen::Vector3d end_translation_;
@@ -161,7 +160,12 @@ class TwistMotion final : public MotionSource {
   double fastest_change_ = 0.0;  // [m/s^2] largest |slope| of a piece, its angular part times 10 m
   bool screws_ = false;
   std::vector<double> scratch_;  // estimateNoise()'s buffer for medians
-  std::vector<double> minima_;   // estimateNoise()'s smallest residuals per interval, a column per kind and component
+  /// estimateNoise()'s last medians, its first pivots (any value gives the same medians): of the
+  /// intervals' durations, of the smallest residuals per kind and component (kind * 6 + c), of the
+  /// means' magnitudes per component.
+  double typical_guess_ = 0.0;
+  std::array<double, 18> residual_guesses_{};
+  std::array<double, 6> size_guesses_{};
   std::vector<Twist> step_, chord_, curve_;  // estimateNoise()'s residuals per stencil
   std::vector<TimeNs> doubled_centres_;       // estimateNoise()'s interval mid times [ns] times two
 };
