@@ -556,6 +556,7 @@ void ScanRebinner::readPoints(const Points& points, const BinSweep& sweep) {
   near_ray_.resize(n);
   has_next_.resize(n);
   joined_.resize(n);
+  general_.resize(n);
   join_test_.resize(n);
   line_.resize(n);
   // whole words of 8 bytes for classifyLinks(): the bytes past the last point stay 0
@@ -892,6 +893,14 @@ void ScanRebinner::traceContours(const Points& points, const BinSweep& sweep) {
       best[k] = (range > 0.0) & (range < best[k]) ? range : best[k];
     }
   };
+  // 1 where link j is not a surface whose points' positions are consecutive rays (positions are rays or
+  // kNoPosition: one more than the last point's is a ray), and for the last point: runs of 0 are the links
+  // crossOneRayEach() takes, skipped by memchr.
+  unsigned char* const general = general_.data();
+  for (std::size_t j = 0; j + 1 < n; ++j)
+    general[j] = (link[j] != Link::kSurface) | (position[j + 1] != position[j] + 1);
+  if (n > 0)
+    general[n - 1] = 1;
   for (std::size_t j = 0; j < n; ++j) {
     Link kind = link[j];
     if (kind == Link::kSurface && running) {
@@ -903,9 +912,8 @@ void ScanRebinner::traceContours(const Points& points, const BinSweep& sweep) {
       for (;; ++j) {
         std::size_t last = j;  // without intensities, links j .. last - 1 have one ray each, consecutive
         if (!with_intensities) {
-          // (positions are rays or kNoPosition: one more than the last point's is a ray)
-          while (last + 1 < n && link[last] == Link::kSurface && position[last + 1] == position[last] + 1)
-            ++last;
+          last = static_cast<std::size_t>(
+              static_cast<const unsigned char*>(std::memchr(general + j, 1, n - j)) - general);
           crossOneRayEach(j, last);
           if (last > j && link[last] != Link::kSurface) {
             j = last - 1;
