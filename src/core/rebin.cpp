@@ -11,6 +11,14 @@
 #include <emmintrin.h>
 #endif
 
+// The per-point loops also in an AVX2 variant, chosen when the library loads (GCC on x86-64; its "avx2" has
+// no FMA, which would round differently).
+#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__)
+#define LIDAR_DESKEW_AVX2_CLONES __attribute__((target_clones("avx2", "default")))
+#else
+#define LIDAR_DESKEW_AVX2_CLONES
+#endif
+
 namespace lidar_deskew::core {
 namespace {
 
@@ -489,7 +497,7 @@ void ScanRebinner::rebin(const DeskewedScan& corrected, const AngleGrid& grid, f
   bins_in_use_ = false;
 }
 
-void ScanRebinner::locatePoints(const Rays& rays) {
+LIDAR_DESKEW_AVX2_CLONES void ScanRebinner::locatePoints(const Rays& rays) {
   const std::size_t n = x_.size();
   const double* const x = x_.data();
   const double* const y = y_.data();
@@ -541,7 +549,7 @@ void ScanRebinner::locatePoints(const Rays& rays) {
   }
 }
 
-void ScanRebinner::readPoints(const Points& points, const BinSweep& sweep) {
+LIDAR_DESKEW_AVX2_CLONES void ScanRebinner::readPoints(const Points& points, const BinSweep& sweep) {
   const std::size_t n = points.size();
   x_.resize(n);
   y_.resize(n);
@@ -707,7 +715,7 @@ void ScanRebinner::readPoints(const Points& points, const BinSweep& sweep) {
   candidate_count_ = count;
 }
 
-void ScanRebinner::classifyLinks() {
+LIDAR_DESKEW_AVX2_CLONES void ScanRebinner::classifyLinks() {
   const std::size_t n = x_.size();
   // The scan's own noise: the median distance from its neighbours' line of every stride-th point within
   // one contour.
@@ -837,7 +845,7 @@ ScanRebinner::Link ScanRebinner::resolveStep(std::size_t j, const BinSweep& swee
   return Link::kStep;
 }
 
-void ScanRebinner::traceContours(const Points& points, const BinSweep& sweep) {
+LIDAR_DESKEW_AVX2_CLONES void ScanRebinner::traceContours(const Points& points, const BinSweep& sweep) {
   const std::size_t n = x_.size();
   const double abs_increment = sweep.absIncrement();
   // Precise enough that a guess, not the noise, would be the error: guesses are left out (kGuessBudget).
@@ -1006,7 +1014,7 @@ void ScanRebinner::traceContours(const Points& points, const BinSweep& sweep) {
   }
 }
 
-void ScanRebinner::writeNearestCrossings(float no_return, RebinnedScan& out) {
+LIDAR_DESKEW_AVX2_CLONES void ScanRebinner::writeNearestCrossings(float no_return, RebinnedScan& out) {
   const std::size_t bin_count = rays_grid_.count;
   std::fill(best_range_.begin() + static_cast<std::ptrdiff_t>(bin_count), best_range_.end(), kInfinity);
   // Each bin written out (converted in one copy: no zeros written first when `out` was moved from), then
