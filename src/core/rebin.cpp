@@ -866,21 +866,28 @@ LIDAR_DESKEW_AVX2_CLONES void ScanRebinner::traceContours(const Points& points, 
   const double* const ray_sin = ray_sin_.data();
   double* const best_range = best_range_.data();
   float* const best_intensity = best_intensity_.data();
+  const unsigned char* const near_ray = near_ray_.data();
+  const std::int32_t quarter = static_cast<std::int32_t>(ray_count_ / 4);
   const auto crossSurfaceLink = [&](std::size_t j, std::size_t q) {
-    // One ray between the two positions: it meets the segment. (A point on its position's ray or the next
-    // meets it in its link on the other side, or offerOwnRay() there.)
-    const std::int32_t ray = position[q];
-    if (!(ray == position[j] + 1 && position[j] >= 0))
+    // The rays between the two positions meet the segment: one ray (a point on its position's ray or the
+    // next meets it in its link on the other side, or offerOwnRay() there), or none or two where neither
+    // point is near a ray (as crossSurface() finds, which takes the rest).
+    const std::int32_t first = position[j], step = position[q] - first;
+    const bool clear =
+        step == 1 || ((step == 0) | (step == 2 && step <= quarter)) & !near_ray[j] & !near_ray[q];
+    if (!(first >= 0 && clear))
       return crossSurface(j, q, points);
     const double ex = x[q] - x[j], ey = y[q] - y[j];
     const double numerator = x[j] * ey - y[j] * ex;
-    const double ray_x = ray_cos[ray], ray_y = ray_sin[ray];
-    const double range = numerator / (ray_x * ey - ray_y * ex);
-    if (range > 0.0 && range < best_range[ray]) {
-      best_range[ray] = range;
-      if (with_intensities) {
-        const double u = std::min(std::max((x[j] * ray_y - y[j] * ray_x) * range / numerator, 0.0), 1.0);
-        best_intensity[ray] = static_cast<float>((1.0 - u) * points[j].intensity + u * points[q].intensity);
+    for (std::int32_t ray = first + 1; ray <= first + step; ++ray) {
+      const double ray_x = ray_cos[ray], ray_y = ray_sin[ray];
+      const double range = numerator / (ray_x * ey - ray_y * ex);
+      if (range > 0.0 && range < best_range[ray]) {
+        best_range[ray] = range;
+        if (with_intensities) {
+          const double u = std::min(std::max((x[j] * ray_y - y[j] * ray_x) * range / numerator, 0.0), 1.0);
+          best_intensity[ray] = static_cast<float>((1.0 - u) * points[j].intensity + u * points[q].intensity);
+        }
       }
     }
     return true;
@@ -922,7 +929,8 @@ LIDAR_DESKEW_AVX2_CLONES void ScanRebinner::traceContours(const Points& points, 
         if (!with_intensities) {
           last = static_cast<std::size_t>(
               static_cast<const unsigned char*>(std::memchr(general + j, 1, n - j)) - general);
-          crossOneRayEach(j, last);
+          if (last > j)  // (a run of none: nothing to set up)
+            crossOneRayEach(j, last);
           if (last > j && link[last] != Link::kSurface) {
             j = last - 1;
             break;
