@@ -245,6 +245,19 @@ inline float bearingInFloat(float a, float px, float py) {
   return floatOf(bitsOf(half) ^ (maskOf(py < 0.0f) & kSignBit));  // below the x axis: negated
 }
 
+/// Links k < count from (px, py)[k] to (px, py)[k + 1], each crossing the ray (cosine, sine)[k]: keeps the
+/// crossing's range in best[k] when positive and nearer (restrict: no overlap tests, which cost short runs).
+inline void crossConsecutiveRays(std::size_t count, const double* __restrict px, const double* __restrict py,
+                                 const double* __restrict cosine, const double* __restrict sine,
+                                 double* __restrict best) {
+  for (std::size_t k = 0; k < count; ++k) {
+    const double ex = px[k + 1] - px[k], ey = py[k + 1] - py[k];
+    const double numerator = px[k] * ey - py[k] * ex;
+    const double range = numerator / (cosine[k] * ey - sine[k] * ex);
+    best[k] = (range > 0.0) & (range < best[k]) ? range : best[k];
+  }
+}
+
 }  // namespace
 
 /// The rays as running bin positions see them: side(ray, p) is how far p lies past the ray in the grid's
@@ -895,18 +908,9 @@ LIDAR_DESKEW_AVX2_CLONES void ScanRebinner::traceContours(const Points& points, 
   // Links begin .. end - 1, each with the one ray between its points' positions, those rays consecutive: a
   // loop of arithmetic (vectorised), no intensities.
   const auto crossOneRayEach = [&](std::size_t begin, std::size_t end) {
-    const double* const px = x_.data() + begin;  // (locals: loads through the closure are not vectorised)
-    const double* const py = y_.data() + begin;
     const std::size_t first_ray = static_cast<std::size_t>(position[begin] + 1);
-    const double* const cosine = ray_cos_.data() + first_ray;
-    const double* const sine = ray_sin_.data() + first_ray;
-    double* const best = best_range_.data() + first_ray;
-    for (std::size_t k = 0; k < end - begin; ++k) {
-      const double ex = px[k + 1] - px[k], ey = py[k + 1] - py[k];
-      const double numerator = px[k] * ey - py[k] * ex;
-      const double range = numerator / (cosine[k] * ey - sine[k] * ex);
-      best[k] = (range > 0.0) & (range < best[k]) ? range : best[k];
-    }
+    crossConsecutiveRays(end - begin, x + begin, y + begin, ray_cos + first_ray, ray_sin + first_ray,
+                         best_range + first_ray);
   };
   // 1 where link j is not a surface whose points' positions are consecutive rays (positions are rays or
   // kNoPosition: one more than the last point's is a ray), and for the last point: runs of 0 are the links
