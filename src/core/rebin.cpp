@@ -489,6 +489,7 @@ void ScanRebinner::updateRays(const AngleGrid& grid) {
   // Every bin starts with no crossing; writeNearestCrossings() leaves them so for the next scan.
   best_range_.assign(ray_count_, kInfinity);
   best_intensity_.assign(ray_count_, 0.0f);
+  converted_.resize(ray_count_);
 }
 
 void ScanRebinner::rebin(const DeskewedScan& corrected, const AngleGrid& grid, float no_return,
@@ -1029,16 +1030,24 @@ LIDAR_DESKEW_AVX2_CLONES void ScanRebinner::traceContours(const Points& points, 
 LIDAR_DESKEW_AVX2_CLONES void ScanRebinner::writeNearestCrossings(float no_return, RebinnedScan& out) {
   const std::size_t bin_count = rays_grid_.count;
   std::fill(best_range_.begin() + static_cast<std::ptrdiff_t>(bin_count), best_range_.end(), kInfinity);
-  // Each bin written out (converted in one copy: no zeros written first when `out` was moved from), then
-  // "no return" where no crossing (+inf), and left empty for the next scan. Loops vectorised.
+  // Each bin converted (into scratch: a vector is zeroed before it is written, when `out` was moved from)
+  // and left empty for the next scan, in a vectorised loop; then copied out. A bin is finite or +inf (no
+  // crossing): converted alone when "no return" is +inf too.
   double* const best_range = best_range_.data();
-  out.ranges.assign(best_range, best_range + bin_count);
-  float* const ranges = out.ranges.data();
-  if (no_return != std::numeric_limits<float>::infinity()) {
-    for (std::size_t b = 0; b < bin_count; ++b)
-      ranges[b] = best_range[b] < kInfinity ? ranges[b] : no_return;
+  float* const ranges = converted_.data();
+  if (no_return == std::numeric_limits<float>::infinity()) {
+    for (std::size_t b = 0; b < bin_count; ++b) {
+      ranges[b] = static_cast<float>(best_range[b]);
+      best_range[b] = kInfinity;
+    }
+  } else {
+    for (std::size_t b = 0; b < bin_count; ++b) {
+      const double range = best_range[b];
+      ranges[b] = range < kInfinity ? static_cast<float>(range) : no_return;
+      best_range[b] = kInfinity;
+    }
   }
-  std::fill(best_range, best_range + bin_count, kInfinity);
+  out.ranges.assign(ranges, ranges + bin_count);
   if (with_intensities_) {
     float* const best_intensity = best_intensity_.data();
     out.intensities.assign(best_intensity, best_intensity + bin_count);

@@ -93,10 +93,12 @@ class ScanRebinner {
   };
 
   // The steps of rebin(), in order. The common case (points on surfaces, one ray between neighbours) runs
-  // over plain arrays in loops of arithmetic and bytes; bearings (atan2) and square roots only for the
+  // over plain arrays in loops of arithmetic and bytes that the compiler vectorises (decisions as masks,
+  // runs of one-ray links found by memchr on a byte mask; on x86-64 the points read as SSE2 pairs, and
+  // with GCC an AVX2 variant of each step, without FMA: the same rounding); bearings (atan2) only for the
   // rare links (corners, steps, grazing walls) and contour ends. Outputs in double (float's rounding moved
-  // ranges across the 10 mm mark of the scan metrics); float only for decisions it makes exactly, with a
-  // guard band about each threshold where double decides (locatePoints()).
+  // ranges across the 10 mm mark of the scan metrics); float, in 32-bit lanes, only for decisions it makes
+  // exactly, with a guard band about each threshold where double decides (locatePoints()).
   /// Recomputes the rays when `grid` differs from the one they were made for.
   void updateRays(const AngleGrid& grid);
   /// Fills x_, y_ (and in float), scale_, range_, has_next_, position_ (the running bin positions),
@@ -196,6 +198,7 @@ class ScanRebinner {
   std::vector<double> side_cos_, side_sin_;  // the same times direction_ (for Rays::side())
   std::vector<double> best_range_;           // [m] nearest crossing per bin so far (+inf between scans)
   std::vector<float> best_intensity_;        // its intensity (0 between scans)
+  std::vector<float> converted_;             // [m] the ranges in float (writeNearestCrossings())
   bool with_intensities_ = false;            // the scan carries intensities
   bool bins_in_use_ = false;                 // between the first offer and writeNearestCrossings()
   bool wraps_ = false;                       // the last point neighbours the first (a full circle)
