@@ -697,7 +697,7 @@ LIDAR_DESKEW_AVX2_CLONES void ScanRebinner::readPoints(const Points& points, con
     length2[j] = l2;
     return linked && l2 != 0.0;
   };
-  // Residuals (infinite without both neighbours: never flat) and the candidates, in a loop of arithmetic
+  // Residuals (infinite without both neighbours: never flat) and the candidates, in loops of arithmetic
   // alone (vectorised).
   for (std::size_t j = 1; j + 1 < n; ++j) {
     const double ex = x[j + 1] - x[j - 1], ey = y[j + 1] - y[j - 1];
