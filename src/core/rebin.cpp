@@ -7,6 +7,18 @@
 
 #include "fast_atan2.h"
 
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
+// The per-point loops also in an AVX2 variant, chosen when the library loads (GCC on x86-64; its "avx2" has
+// no FMA, which would round differently).
+#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__)
+#define LIDAR_DESKEW_AVX2_CLONES __attribute__((target_clones("avx2", "default")))
+#else
+#define LIDAR_DESKEW_AVX2_CLONES
+#endif
+
 namespace lidar_deskew::core {
 namespace {
 
@@ -204,10 +216,19 @@ inline float floatOf(std::uint32_t bits) {
   std::memcpy(&value, &bits, sizeof value);
   return value;
 }
+/// The same for doubles (C++20's std::bit_cast).
+template <typename To, typename From>
+inline To bitCast(From value) {
+  static_assert(sizeof(To) == sizeof(From), "same size");
+  To result;
+  std::memcpy(&result, &value, sizeof result);
+  return result;
+}
 /// All ones when `condition`, else 0.
 inline std::uint32_t maskOf(bool condition) {
   return 0u - static_cast<std::uint32_t>(condition);
 }
+constexpr std::uint64_t kMaxInt64 = 0x7fffffffffffffffu;
 constexpr std::uint32_t kSignBit = 0x80000000u;
 
 /// The bearing [rad] of (px, py) in float, from a = min(|px|, |py|) / max(|px|, |py|): an odd polynomial for
@@ -222,6 +243,19 @@ inline float bearingInFloat(float a, float px, float py) {
   const float octant = floatOf(bitsOf(static_cast<float>(M_PI_2)) & steep) + floatOf(bitsOf(r) ^ (steep & kSignBit));
   const float half = floatOf(bitsOf(static_cast<float>(M_PI)) & left) + floatOf(bitsOf(octant) ^ (left & kSignBit));
   return floatOf(bitsOf(half) ^ (maskOf(py < 0.0f) & kSignBit));  // below the x axis: negated
+}
+
+/// Links k < count from (px, py)[k] to (px, py)[k + 1], each crossing the ray (cosine, sine)[k]: keeps the
+/// crossing's range in best[k] when positive and nearer (restrict: no overlap tests, which cost short runs).
+inline void crossConsecutiveRays(std::size_t count, const double* __restrict px, const double* __restrict py,
+                                 const double* __restrict cosine, const double* __restrict sine,
+                                 double* __restrict best) {
+  for (std::size_t k = 0; k < count; ++k) {
+    const double ex = px[k + 1] - px[k], ey = py[k + 1] - py[k];
+    const double numerator = px[k] * ey - py[k] * ex;
+    const double range = numerator / (cosine[k] * ey - sine[k] * ex);
+    best[k] = (range > 0.0) & (range < best[k]) ? range : best[k];
+  }
 }
 
 }  // namespace
@@ -455,6 +489,7 @@ void ScanRebinner::updateRays(const AngleGrid& grid) {
   // Every bin starts with no crossing; writeNearestCrossings() leaves them so for the next scan.
   best_range_.assign(ray_count_, kInfinity);
   best_intensity_.assign(ray_count_, 0.0f);
+  converted_.resize(ray_count_);
 }
 
 void ScanRebinner::rebin(const DeskewedScan& corrected, const AngleGrid& grid, float no_return,
@@ -476,21 +511,24 @@ void ScanRebinner::rebin(const DeskewedScan& corrected, const AngleGrid& grid, f
   bins_in_use_ = false;
 }
 
-void ScanRebinner::locatePoints(const Rays& rays) {
+LIDAR_DESKEW_AVX2_CLONES void ScanRebinner::locatePoints(const Rays& rays) {
   const std::size_t n = x_.size();
   const double* const x = x_.data();
   const double* const y = y_.data();
   std::int32_t* const position = position_.data();
   unsigned char* const near_ray = near_ray_.data();
-  // Every point's ray from its bearing in float, in a loop of arithmetic alone (vectorised): kNearRay where
-  // the bearing lies within its error bound (kBearingErrorFloat) of a ray, or the point is not of a size
-  // float holds. Elsewhere the point lies strictly between that ray and the next, as side() finds.
+  // Every point's ray from its bearing in float, in a loop of arithmetic alone on 32-bit lanes (vectorised):
+  // kNearRay where the bearing lies within its error bound (kBearingErrorFloat) of a ray, or the point is
+  // not of a size float holds. Elsewhere the point lies strictly between that ray and the next, as side()
+  // finds.
   if (float_positions_) {
+    const float* const x_float = x_float_.data();
+    const float* const y_float = y_float_.data();
     const float origin = bearing_origin_, direction = static_cast<float>(direction_);
     const float bins_per_radian = bins_per_radian_, guard = position_guard_, last_sure = last_sure_bin_;
     constexpr float kTurn = static_cast<float>(kTwoPi);
     for (std::size_t j = 0; j < n; ++j) {
-      const float px = static_cast<float>(x[j]), py = static_cast<float>(y[j]);
+      const float px = x_float[j], py = y_float[j];
       const float ax = std::abs(px), ay = std::abs(py);
       const float high = std::max(ax, ay), low = std::min(ax, ay);
       const bool sane = (high > kMinFloatScale) & (high < kMaxFloatScale);
@@ -501,15 +539,18 @@ void ScanRebinner::locatePoints(const Rays& rays) {
       const float bins = floatOf(bitsOf(wrapped * bins_per_radian) & maskOf(sane));  // (not NaN: 0)
       const std::int32_t ray = static_cast<std::int32_t>(bins);
       const float fraction = bins - static_cast<float>(ray);
-      const bool sure = sane & (fraction > guard) & (fraction < 1.0f - guard) & (bins < last_sure);
-      position[j] = sure ? ray : kNearRay;
+      const std::uint32_t sure =
+          maskOf(sane & (fraction > guard) & (fraction < 1.0f - guard) & (bins < last_sure));
+      position[j] = static_cast<std::int32_t>((static_cast<std::uint32_t>(ray) & sure) |
+                                              (static_cast<std::uint32_t>(kNearRay) & ~sure));
     }
+    for (std::size_t j = 0; j < n; ++j)
+      near_ray[j] = position[j] == kNearRay;
   } else {
     std::fill(position, position + n, kNearRay);
+    std::fill(near_ray, near_ray + n, 1);
   }
   // The others as before: walking from the last point's ray found (side() decides, in double).
-  for (std::size_t j = 0; j < n; ++j)
-    near_ray[j] = position[j] == kNearRay;
   for (const unsigned char* found = static_cast<const unsigned char*>(std::memchr(near_ray, 1, n)); found;) {
     const std::size_t j = static_cast<std::size_t>(found - near_ray);
     std::size_t before = j;
@@ -522,49 +563,89 @@ void ScanRebinner::locatePoints(const Rays& rays) {
   }
 }
 
-void ScanRebinner::readPoints(const Points& points, const BinSweep& sweep) {
+LIDAR_DESKEW_AVX2_CLONES void ScanRebinner::readPoints(const Points& points, const BinSweep& sweep) {
   const std::size_t n = points.size();
   x_.resize(n);
   y_.resize(n);
+  x_float_.resize(n);
+  y_float_.resize(n);
   scale_.resize(n);
+  range_.resize(n);
+  beam_.resize(n);
   cross_.resize(n);
   length2_.resize(n);
-  join_margin_.resize(n);
   position_.resize(n);
   near_ray_.resize(n);
   has_next_.resize(n);
   joined_.resize(n);
-  candidates_.resize(n + 1);
-  candidate_begin_ = candidate_end_ = 0;
+  general_.resize(n);
+  join_test_.resize(n);
+  line_.resize(n);
+  // whole words of 8 bytes for classifyLinks(): the bytes past the last point stay 0
+  const std::size_t padded = (n + 7) / 8 * 8;
+  candidate_.resize(padded);
+  std::fill(candidate_.begin() + static_cast<std::ptrdiff_t>(n), candidate_.end(), 0);
+  candidate_count_ = 0;
   wraps_ = false;
   if (n == 0)
     return;
   // Plain pointers and locals: stores through the byte arrays could alias any member.
   double* const x = x_.data();
   double* const y = y_.data();
+  float* const x_float = x_float_.data();
+  float* const y_float = y_float_.data();
   double* const scale = scale_.data();
+  double* const range = range_.data();
+  std::uint32_t* const beam = beam_.data();
   unsigned char* const has_next = has_next_.data();
   unsigned char* const joined = joined_.data();
   double* const cross_product = cross_.data();
   double* const length2 = length2_.data();
-  std::uint32_t* const candidates = candidates_.data();
+  unsigned char* const candidate = candidate_.data();
   const bool running = running_;
   const Rays rays = this->rays(sweep.absIncrement());
-  // The points into plain arrays, which are neighbours (beam index + 1), and their running bin positions,
-  // each found from the previous point's (one to three rays tried, most often); whether a point lies on
-  // its position's ray or the next (within rounding). Finite when every |x| + |y| is (checked after).
+  // The points into plain arrays (in float too, for locatePoints()), which are neighbours (beam index + 1).
+  // Finite when every |x| + |y| is (checked after).
   bool finite = true;
-  std::uint32_t previous_beam = points[0].beam_index;
-  for (std::size_t j = 0; j < n; ++j) {
-    const double px = points[j].position.x(), py = points[j].position.y();
+  std::size_t i = 0;
+#if defined(__SSE2__)
+  // Four points at a time, their x/y pairs loaded as such (SSE2 is part of x86-64): the same operations as
+  // below, in two lanes.
+  const __m128d sign = _mm_set1_pd(-0.0), largest = _mm_set1_pd(std::numeric_limits<double>::max());
+  __m128d sizes_finite = _mm_cmpeq_pd(largest, largest);  // all ones
+  for (; i + 4 <= n; i += 4) {
+    __m128 float_x = _mm_setzero_ps(), float_y = _mm_setzero_ps();
+    for (std::size_t half = 0; half < 4; half += 2) {
+      const __m128d first = _mm_loadu_pd(points[i + half].position.data());  // x, y
+      const __m128d second = _mm_loadu_pd(points[i + half + 1].position.data());
+      const __m128d px = _mm_unpacklo_pd(first, second), py = _mm_unpackhi_pd(first, second);
+      const __m128d abs_x = _mm_andnot_pd(sign, px), abs_y = _mm_andnot_pd(sign, py);
+      sizes_finite = _mm_and_pd(sizes_finite, _mm_cmple_pd(_mm_add_pd(abs_x, abs_y), largest));
+      _mm_storeu_pd(x + i + half, px);
+      _mm_storeu_pd(y + i + half, py);
+      _mm_storeu_pd(scale + i + half, _mm_max_pd(abs_x, abs_y));  // (equal: the same value)
+      _mm_storeu_pd(range + i + half, _mm_sqrt_pd(_mm_add_pd(_mm_mul_pd(px, px), _mm_mul_pd(py, py))));
+      float_x = half == 0 ? _mm_cvtpd_ps(px) : _mm_movelh_ps(float_x, _mm_cvtpd_ps(px));
+      float_y = half == 0 ? _mm_cvtpd_ps(py) : _mm_movelh_ps(float_y, _mm_cvtpd_ps(py));
+    }
+    _mm_storeu_ps(x_float + i, float_x);
+    _mm_storeu_ps(y_float + i, float_y);
+    for (std::size_t k = i; k < i + 4; ++k)
+      beam[k] = points[k].beam_index;
+  }
+  finite = _mm_movemask_pd(sizes_finite) == 3;
+#endif
+  for (; i < n; ++i) {
+    const double px = points[i].position.x(), py = points[i].position.y();
     const double size = std::abs(px) + std::abs(py);
     finite &= size <= std::numeric_limits<double>::max();
-    x[j] = px;
-    y[j] = py;
-    scale[j] = std::max(std::abs(px), std::abs(py));
-    const std::uint32_t beam = points[j + 1 < n ? j + 1 : j].beam_index;  // (the last one's: set below)
-    has_next[j] = beam == previous_beam + 1;
-    previous_beam = beam;
+    x[i] = px;
+    y[i] = py;
+    x_float[i] = static_cast<float>(px);
+    y_float[i] = static_cast<float>(py);
+    scale[i] = std::max(std::abs(px), std::abs(py));
+    range[i] = std::sqrt(px * px + py * py);  // as rangeOf()
+    beam[i] = points[i].beam_index;
   }
   if (!finite) {
     for (std::size_t j = 0; j < n; ++j) {
@@ -572,6 +653,8 @@ void ScanRebinner::readPoints(const Points& points, const BinSweep& sweep) {
         throw InvalidInput("points", "corrected point " + std::to_string(j) + " is not finite");
     }
   }
+  for (std::size_t j = 0; j + 1 < n; ++j)
+    has_next[j] = beam[j + 1] == beam[j] + 1;
   if (running)
     locatePoints(rays);
   // For a full-circle grid the last beam also neighbours the first.
@@ -580,20 +663,33 @@ void ScanRebinner::readPoints(const Points& points, const BinSweep& sweep) {
   has_next[n - 1] = wraps_;
   // Joins: within min_gap + gap_factor * range * |increment| of the next point (range: the larger). Each
   // point's distance from the line through its neighbours as |cross| / sqrt(length2) (length2 0: no such
-  // line, never flat); points with both links joined estimate the noise (candidates, in point order).
+  // line, never flat); points with both links joined estimate the noise (candidates).
   const double min_gap = config_.min_gap;
   const double gap_per_range = config_.gap_factor * sweep.absIncrement();
   // max(|x|, |y|) is never more than the range (as sqrt rounds it): a gap from it is never wider, so
-  // within it the points are joined without a square root.
-  const auto isJoined = [&](std::size_t a, std::size_t b) {
+  // within it the points are joined whatever the range; both tested, in a loop of arithmetic (vectorised).
+  const auto isJoined = [&](std::size_t a, std::size_t b) -> unsigned char {
     const double dx = x[b] - x[a], dy = y[b] - y[a];
     const double distance2 = dx * dx + dy * dy;
     const double low_gap = min_gap + gap_per_range * std::max(scale[a], scale[b]);
-    if (distance2 <= low_gap * low_gap)
-      return true;
-    const double gap = min_gap + gap_per_range * std::max(rangeOf(a), rangeOf(b));
-    return distance2 <= gap * gap;
+    const double gap = min_gap + gap_per_range * std::max(range[a], range[b]);
+    return (distance2 <= low_gap * low_gap) | (distance2 <= gap * gap);
   };
+  // (the tests' bits kept in a double: a store that may alias the loads keeps GCC from carrying them from one
+  // point to the next, which it does not vectorise)
+  double* const farther = join_test_.data();
+  for (std::size_t j = 0; j + 1 < n; ++j) {
+    const double dx = x[j + 1] - x[j], dy = y[j + 1] - y[j];
+    const double distance2 = dx * dx + dy * dy;
+    const double low_gap = min_gap + gap_per_range * std::max(scale[j], scale[j + 1]);
+    const double gap = min_gap + gap_per_range * std::max(range[j], range[j + 1]);
+    // distance2 <= either squared gap, on the bits: non-negative doubles order as their bits do
+    const std::uint64_t limit = bitCast<std::uint64_t>(std::max(low_gap * low_gap, gap * gap));
+    farther[j] = bitCast<double>((limit - bitCast<std::uint64_t>(distance2)) >> 63);
+  }
+  for (std::size_t j = 0; j + 1 < n; ++j)
+    joined[j] = has_next[j] & static_cast<unsigned char>(bitCast<std::uint64_t>(farther[j]) ^ 1u);
+  joined[n - 1] = wraps_ && isJoined(n - 1, 0);
   const auto residualOf = [&](std::size_t p, std::size_t j, std::size_t q, bool linked) {
     const double ex = x[q] - x[p], ey = y[q] - y[p];
     const double l2 = ex * ex + ey * ey;
@@ -601,65 +697,63 @@ void ScanRebinner::readPoints(const Points& points, const BinSweep& sweep) {
     length2[j] = l2;
     return linked && l2 != 0.0;
   };
-  // Residuals, and how far within the gap from max(|x|, |y|) each point is of the next: loops of arithmetic
-  // alone (vectorised). Then, in order: joins (by the range where not within that gap), residuals infinite
-  // without both neighbours (never flat), the candidates.
+  // Residuals (infinite without both neighbours: never flat) and the candidates, in loops of arithmetic
+  // alone (vectorised).
   for (std::size_t j = 1; j + 1 < n; ++j) {
     const double ex = x[j + 1] - x[j - 1], ey = y[j + 1] - y[j - 1];
     cross_product[j] = ex * (y[j] - y[j - 1]) - ey * (x[j] - x[j - 1]);
     length2[j] = ex * ex + ey * ey;
   }
-  double* const join_margin = join_margin_.data();
-  for (std::size_t j = 0; j + 1 < n; ++j) {
-    const double dx = x[j + 1] - x[j], dy = y[j + 1] - y[j];
-    const double low_gap = min_gap + gap_per_range * std::max(scale[j], scale[j + 1]);
-    join_margin[j] = low_gap * low_gap - (dx * dx + dy * dy);
+  unsigned char* const line = line_.data();
+  for (std::size_t j = 1; j + 1 < n; ++j) {  // (length2 >= +0: its bits are 0 only for 0)
+    const unsigned char nonzero =
+        static_cast<unsigned char>((bitCast<std::uint64_t>(length2[j]) + kMaxInt64) >> 63);
+    line[j] = has_next[j - 1] & has_next[j] & nonzero;
   }
-  const auto isJoinedNext = [&](std::size_t j) -> unsigned char {  // isJoined(j, j + 1), its first test done
-    const unsigned char within = has_next[j] & (join_margin[j] >= 0.0);
-    return has_next[j] > within ? isJoined(j, j + 1) : within;  // (rare: the range's square root)
-  };
-  joined[0] = n > 1 && isJoinedNext(0);
-  std::size_t count = 1;  // candidates[0] is kept for point 0 (below)
-  unsigned char joined_previous = joined[0];
+  std::size_t count = 0;
   for (std::size_t j = 1; j + 1 < n; ++j) {
-    const unsigned char joined_j = isJoinedNext(j);
-    joined[j] = joined_j;
-    const unsigned char line = has_next[j - 1] & has_next[j] & (length2[j] != 0.0);
-    if (!line)
-      cross_product[j] = kInfinity;
-    candidates[count] = static_cast<std::uint32_t>(j);
-    count += joined_previous & joined_j & line;
-    joined_previous = joined_j;
+    const unsigned char is_candidate = joined[j - 1] & joined[j] & line[j];
+    candidate[j] = is_candidate;
+    count += is_candidate;
   }
-  joined[n - 1] = wraps_ && isJoined(n - 1, 0);
+  for (std::size_t j = 1; j + 1 < n; ++j)
+    cross_product[j] = line[j] ? cross_product[j] : kInfinity;
   cross_product[0] = cross_product[n - 1] = kInfinity;
   length2[0] = length2[n - 1] = 0.0;
+  candidate[0] = candidate[n - 1] = 0;
   if (wraps_) {
-    if (residualOf(n - 2, n - 1, 0, has_next[n - 2]) && joined[n - 2] && joined[n - 1])
-      candidates[count++] = static_cast<std::uint32_t>(n - 1);
-    if (residualOf(n - 1, 0, 1, has_next[0]) && joined[n - 1] && joined[0]) {
-      candidates[0] = 0;
-      candidate_begin_ = 0;
-    } else {
-      candidate_begin_ = 1;
-    }
-  } else {
-    candidate_begin_ = 1;
+    candidate[n - 1] = residualOf(n - 2, n - 1, 0, has_next[n - 2]) && joined[n - 2] && joined[n - 1];
+    candidate[0] = residualOf(n - 1, 0, 1, has_next[0]) && joined[n - 1] && joined[0];
+    count += candidate[n - 1] + candidate[0];
   }
-  candidate_end_ = count;
+  candidate_count_ = count;
 }
 
-void ScanRebinner::classifyLinks() {
+LIDAR_DESKEW_AVX2_CLONES void ScanRebinner::classifyLinks() {
   const std::size_t n = x_.size();
   // The scan's own noise: the median distance from its neighbours' line of every stride-th point within
   // one contour.
-  const std::size_t candidate_count = candidate_end_ - candidate_begin_;
+  const std::size_t candidate_count = candidate_count_;
   const std::size_t stride = std::max<std::size_t>(1, candidate_count / kNoiseSampleSize);
   noise_sample_.resize((candidate_count + stride - 1) / stride);
-  for (std::size_t s = candidate_begin_, k = 0; s < candidate_end_; s += stride, ++k) {
-    const std::uint32_t j = candidates_[s];
-    noise_sample_[k] = std::abs(cross_[j]) / std::sqrt(length2_[j]);
+  // Every stride-th candidate in point order, by words of 8 candidate bytes (0 or 1): their sum skips a
+  // word, or finds a word of 8 candidates' k-th directly.
+  const unsigned char* const candidate = candidate_.data();
+  std::size_t rank = 0, take = 0, k = 0;  // candidates before `word`, the next one sampled
+  for (std::size_t word = 0; take < candidate_count; word += 8) {
+    std::uint64_t bytes;
+    std::memcpy(&bytes, candidate + word, sizeof bytes);
+    const std::size_t in_word = static_cast<std::size_t>((bytes * 0x0101010101010101u) >> 56);
+    for (; take < rank + in_word; take += stride) {
+      std::size_t j = word + (take - rank);
+      if (in_word < 8) {
+        j = word;
+        for (std::size_t seen = candidate[j]; seen <= take - rank; seen += candidate[j])
+          ++j;
+      }
+      noise_sample_[k++] = std::abs(cross_[j]) / std::sqrt(length2_[j]);
+    }
+    rank += in_word;
   }
   double median = 0.0;
   if (!noise_sample_.empty()) {
@@ -765,7 +859,7 @@ ScanRebinner::Link ScanRebinner::resolveStep(std::size_t j, const BinSweep& swee
   return Link::kStep;
 }
 
-void ScanRebinner::traceContours(const Points& points, const BinSweep& sweep) {
+LIDAR_DESKEW_AVX2_CLONES void ScanRebinner::traceContours(const Points& points, const BinSweep& sweep) {
   const std::size_t n = x_.size();
   const double abs_increment = sweep.absIncrement();
   // Precise enough that a guess, not the noise, would be the error: guesses are left out (kGuessBudget).
@@ -786,21 +880,28 @@ void ScanRebinner::traceContours(const Points& points, const BinSweep& sweep) {
   const double* const ray_sin = ray_sin_.data();
   double* const best_range = best_range_.data();
   float* const best_intensity = best_intensity_.data();
+  const unsigned char* const near_ray = near_ray_.data();
+  const std::int32_t quarter = static_cast<std::int32_t>(ray_count_ / 4);
   const auto crossSurfaceLink = [&](std::size_t j, std::size_t q) {
-    // One ray between the two positions: it meets the segment. (A point on its position's ray or the next
-    // meets it in its link on the other side, or offerOwnRay() there.)
-    const std::int32_t ray = position[q];
-    if (!(ray == position[j] + 1 && position[j] >= 0))
+    // The rays between the two positions meet the segment: one ray (a point on its position's ray or the
+    // next meets it in its link on the other side, or offerOwnRay() there), or none or two where neither
+    // point is near a ray (as crossSurface() finds, which takes the rest).
+    const std::int32_t first = position[j], step = position[q] - first;
+    const bool clear =
+        step == 1 || ((step == 0) | (step == 2 && step <= quarter)) & !near_ray[j] & !near_ray[q];
+    if (!(first >= 0 && clear))
       return crossSurface(j, q, points);
     const double ex = x[q] - x[j], ey = y[q] - y[j];
     const double numerator = x[j] * ey - y[j] * ex;
-    const double ray_x = ray_cos[ray], ray_y = ray_sin[ray];
-    const double range = numerator / (ray_x * ey - ray_y * ex);
-    if (range > 0.0 && range < best_range[ray]) {
-      best_range[ray] = range;
-      if (with_intensities) {
-        const double u = std::min(std::max((x[j] * ray_y - y[j] * ray_x) * range / numerator, 0.0), 1.0);
-        best_intensity[ray] = static_cast<float>((1.0 - u) * points[j].intensity + u * points[q].intensity);
+    for (std::int32_t ray = first + 1; ray <= first + step; ++ray) {
+      const double ray_x = ray_cos[ray], ray_y = ray_sin[ray];
+      const double range = numerator / (ray_x * ey - ray_y * ex);
+      if (range > 0.0 && range < best_range[ray]) {
+        best_range[ray] = range;
+        if (with_intensities) {
+          const double u = std::min(std::max((x[j] * ray_y - y[j] * ray_x) * range / numerator, 0.0), 1.0);
+          best_intensity[ray] = static_cast<float>((1.0 - u) * points[j].intensity + u * points[q].intensity);
+        }
       }
     }
     return true;
@@ -808,19 +909,18 @@ void ScanRebinner::traceContours(const Points& points, const BinSweep& sweep) {
   // Links begin .. end - 1, each with the one ray between its points' positions, those rays consecutive: a
   // loop of arithmetic (vectorised), no intensities.
   const auto crossOneRayEach = [&](std::size_t begin, std::size_t end) {
-    const double* const px = x_.data() + begin;  // (locals: loads through the closure are not vectorised)
-    const double* const py = y_.data() + begin;
     const std::size_t first_ray = static_cast<std::size_t>(position[begin] + 1);
-    const double* const cosine = ray_cos_.data() + first_ray;
-    const double* const sine = ray_sin_.data() + first_ray;
-    double* const best = best_range_.data() + first_ray;
-    for (std::size_t k = 0; k < end - begin; ++k) {
-      const double ex = px[k + 1] - px[k], ey = py[k + 1] - py[k];
-      const double numerator = px[k] * ey - py[k] * ex;
-      const double range = numerator / (cosine[k] * ey - sine[k] * ex);
-      best[k] = (range > 0.0) & (range < best[k]) ? range : best[k];
-    }
+    crossConsecutiveRays(end - begin, x + begin, y + begin, ray_cos + first_ray, ray_sin + first_ray,
+                         best_range + first_ray);
   };
+  // 1 where link j is not a surface whose points' positions are consecutive rays (positions are rays or
+  // kNoPosition: one more than the last point's is a ray), and for the last point: runs of 0 are the links
+  // crossOneRayEach() takes, skipped by memchr.
+  unsigned char* const general = general_.data();
+  for (std::size_t j = 0; j + 1 < n; ++j)
+    general[j] = (link[j] != Link::kSurface) | (position[j + 1] != position[j] + 1);
+  if (n > 0)
+    general[n - 1] = 1;
   for (std::size_t j = 0; j < n; ++j) {
     Link kind = link[j];
     if (kind == Link::kSurface && running) {
@@ -832,10 +932,10 @@ void ScanRebinner::traceContours(const Points& points, const BinSweep& sweep) {
       for (;; ++j) {
         std::size_t last = j;  // without intensities, links j .. last - 1 have one ray each, consecutive
         if (!with_intensities) {
-          // (positions are rays or kNoPosition: one more than the last point's is a ray)
-          while (last + 1 < n && link[last] == Link::kSurface && position[last + 1] == position[last] + 1)
-            ++last;
-          crossOneRayEach(j, last);
+          last = static_cast<std::size_t>(
+              static_cast<const unsigned char*>(std::memchr(general + j, 1, n - j)) - general);
+          if (last > j)  // (a run of none: nothing to set up)
+            crossOneRayEach(j, last);
           if (last > j && link[last] != Link::kSurface) {
             j = last - 1;
             break;
@@ -927,14 +1027,14 @@ void ScanRebinner::traceContours(const Points& points, const BinSweep& sweep) {
   }
 }
 
-void ScanRebinner::writeNearestCrossings(float no_return, RebinnedScan& out) {
+LIDAR_DESKEW_AVX2_CLONES void ScanRebinner::writeNearestCrossings(float no_return, RebinnedScan& out) {
   const std::size_t bin_count = rays_grid_.count;
-  out.ranges.resize(bin_count);
   std::fill(best_range_.begin() + static_cast<std::ptrdiff_t>(bin_count), best_range_.end(), kInfinity);
-  // Each bin read, written out and left empty for the next scan: no separate clearing pass. A bin is
-  // finite or +inf (no crossing): converted alone (vectorised) when "no return" is +inf too.
+  // Each bin converted (into scratch: a vector is zeroed before it is written, when `out` was moved from)
+  // and left empty for the next scan, in a vectorised loop; then copied out. A bin is finite or +inf (no
+  // crossing): converted alone when "no return" is +inf too.
   double* const best_range = best_range_.data();
-  float* const ranges = out.ranges.data();
+  float* const ranges = converted_.data();
   if (no_return == std::numeric_limits<float>::infinity()) {
     for (std::size_t b = 0; b < bin_count; ++b) {
       ranges[b] = static_cast<float>(best_range[b]);
@@ -947,14 +1047,11 @@ void ScanRebinner::writeNearestCrossings(float no_return, RebinnedScan& out) {
       best_range[b] = kInfinity;
     }
   }
+  out.ranges.assign(ranges, ranges + bin_count);
   if (with_intensities_) {
-    out.intensities.resize(bin_count);
     float* const best_intensity = best_intensity_.data();
-    float* const intensities = out.intensities.data();
-    for (std::size_t b = 0; b < bin_count; ++b) {
-      intensities[b] = best_intensity[b];
-      best_intensity[b] = 0.0f;
-    }
+    out.intensities.assign(best_intensity, best_intensity + bin_count);
+    std::fill(best_intensity, best_intensity + bin_count, 0.0f);
   } else {
     out.intensities.clear();
   }

@@ -93,14 +93,16 @@ class ScanRebinner {
   };
 
   // The steps of rebin(), in order. The common case (points on surfaces, one ray between neighbours) runs
-  // over plain arrays in loops of arithmetic and bytes; bearings (atan2) and square roots only for the
+  // over plain arrays in loops of arithmetic and bytes that the compiler vectorises (decisions as masks,
+  // runs of one-ray links found by memchr on a byte mask; on x86-64 the points read as SSE2 pairs, and
+  // with GCC an AVX2 variant of each step, without FMA: the same rounding); bearings (atan2) only for the
   // rare links (corners, steps, grazing walls) and contour ends. Outputs in double (float's rounding moved
-  // ranges across the 10 mm mark of the scan metrics); float only for decisions it makes exactly, with a
-  // guard band about each threshold where double decides (locatePoints()).
+  // ranges across the 10 mm mark of the scan metrics); float, in 32-bit lanes, only for decisions it makes
+  // exactly, with a guard band about each threshold where double decides (locatePoints()).
   /// Recomputes the rays when `grid` differs from the one they were made for.
   void updateRays(const AngleGrid& grid);
-  /// Fills x_, y_, scale_, has_next_, position_ (the running bin positions), joined_, the
-  /// residuals and the noise candidates;
+  /// Fills x_, y_ (and in float), scale_, range_, has_next_, position_ (the running bin positions),
+  /// joined_, the residuals and the noise candidates;
   /// throws InvalidInput("points") for a non-finite point.
   void readPoints(const Points& points, const BinSweep& sweep);
   /// position_ and near_ray_ of every point (readPoints()).
@@ -196,22 +198,28 @@ class ScanRebinner {
   std::vector<double> side_cos_, side_sin_;  // the same times direction_ (for Rays::side())
   std::vector<double> best_range_;           // [m] nearest crossing per bin so far (+inf between scans)
   std::vector<float> best_intensity_;        // its intensity (0 between scans)
+  std::vector<float> converted_;             // [m] the ranges in float (writeNearestCrossings())
   bool with_intensities_ = false;            // the scan carries intensities
   bool bins_in_use_ = false;                 // between the first offer and writeNearestCrossings()
   bool wraps_ = false;                       // the last point neighbours the first (a full circle)
   // Per point, in plain arrays.
   std::vector<double> x_, y_, scale_;      // [m] the corrected point, max(|x|, |y|)
+  std::vector<float> x_float_, y_float_;   // [m] the same in float (locatePoints())
+  std::vector<double> range_;              // [m] its range (as rangeOf())
+  std::vector<std::uint32_t> beam_;        // its beam index
   std::vector<double> cross_, length2_;    // [m^2] its distance from its neighbours' line as |cross| /
                                            // sqrt(length2); cross infinite: no such line
-  std::vector<double> join_margin_;        // [m^2] how far within the gap from max(|x|, |y|) of its next
   std::vector<std::int32_t> position_;     // its running bin position (negative: not found)
   std::vector<unsigned char> near_ray_;    // the position found by side() (near a ray): onRay() may hold
   std::vector<unsigned char> has_next_;    // j's next point is its neighbour (beam index + 1, or the wrap)
   std::vector<unsigned char> joined_;      // j and its next are close enough for one contour
+  std::vector<double> join_test_;          // scratch
+  std::vector<unsigned char> line_;        // scratch
   std::vector<unsigned char> flat_;        // j lies on the line through its two joined neighbours
-  std::vector<std::uint32_t> candidates_;  // [candidate_begin_, candidate_end_): points whose residual
-  std::size_t candidate_begin_ = 0, candidate_end_ = 0;  // estimates the noise (both links joined)
+  std::vector<unsigned char> candidate_;   // j's residual estimates the noise (both links joined); padded
+  std::size_t candidate_count_ = 0;        // to whole words of 8 with 0
   std::vector<Link> link_;                   // what joins j and its next
+  std::vector<unsigned char> general_;       // link j needs more than crossOneRayEach (traceContours())
   std::vector<double> corner_x_, corner_y_;  // [m] the corner of a kCorner link
   std::vector<double> noise_sample_;         // [m] scratch for the noise estimate
   std::vector<std::size_t> ends_;            // points where a contour ends (or a lone return)
