@@ -644,7 +644,7 @@ LIDAR_DESKEW_AVX2_CLONES void ScanRebinner::readPoints(const Points& points, con
     x_float[i] = static_cast<float>(px);
     y_float[i] = static_cast<float>(py);
     scale[i] = std::max(std::abs(px), std::abs(py));
-    range[i] = std::sqrt(px * px + py * py);  // as rangeOf()
+    range[i] = std::sqrt(px * px + py * py);
     beam[i] = points[i].beam_index;
   }
   if (!finite) {
@@ -668,28 +668,24 @@ LIDAR_DESKEW_AVX2_CLONES void ScanRebinner::readPoints(const Points& points, con
   const double gap_per_range = config_.gap_factor * sweep.absIncrement();
   // max(|x|, |y|) is never more than the range (as sqrt rounds it): a gap from it is never wider, so
   // within it the points are joined whatever the range; both tested, in a loop of arithmetic (vectorised).
-  const auto isJoined = [&](std::size_t a, std::size_t b) -> unsigned char {
+  // 1 where b lies farther from a than both gaps, else 0: distance2 <= either squared gap, tested on the
+  // bits (non-negative doubles order as their bits do).
+  const auto fartherThanGaps = [&](std::size_t a, std::size_t b) -> std::uint64_t {
     const double dx = x[b] - x[a], dy = y[b] - y[a];
     const double distance2 = dx * dx + dy * dy;
     const double low_gap = min_gap + gap_per_range * std::max(scale[a], scale[b]);
     const double gap = min_gap + gap_per_range * std::max(range[a], range[b]);
-    return (distance2 <= low_gap * low_gap) | (distance2 <= gap * gap);
+    const std::uint64_t limit = bitCast<std::uint64_t>(std::max(low_gap * low_gap, gap * gap));
+    return (limit - bitCast<std::uint64_t>(distance2)) >> 63;
   };
   // (the tests' bits kept in a double: a store that may alias the loads keeps GCC from carrying them from one
   // point to the next, which it does not vectorise)
   double* const farther = join_test_.data();
-  for (std::size_t j = 0; j + 1 < n; ++j) {
-    const double dx = x[j + 1] - x[j], dy = y[j + 1] - y[j];
-    const double distance2 = dx * dx + dy * dy;
-    const double low_gap = min_gap + gap_per_range * std::max(scale[j], scale[j + 1]);
-    const double gap = min_gap + gap_per_range * std::max(range[j], range[j + 1]);
-    // distance2 <= either squared gap, on the bits: non-negative doubles order as their bits do
-    const std::uint64_t limit = bitCast<std::uint64_t>(std::max(low_gap * low_gap, gap * gap));
-    farther[j] = bitCast<double>((limit - bitCast<std::uint64_t>(distance2)) >> 63);
-  }
+  for (std::size_t j = 0; j + 1 < n; ++j)
+    farther[j] = bitCast<double>(fartherThanGaps(j, j + 1));
   for (std::size_t j = 0; j + 1 < n; ++j)
     joined[j] = has_next[j] & static_cast<unsigned char>(bitCast<std::uint64_t>(farther[j]) ^ 1u);
-  joined[n - 1] = wraps_ && isJoined(n - 1, 0);
+  joined[n - 1] = wraps_ && fartherThanGaps(n - 1, 0) == 0;
   const auto residualOf = [&](std::size_t p, std::size_t j, std::size_t q, bool linked) {
     const double ex = x[q] - x[p], ey = y[q] - y[p];
     const double l2 = ex * ex + ey * ey;
@@ -835,7 +831,7 @@ std::size_t ScanRebinner::previous(std::size_t j) const {
 }
 
 double ScanRebinner::rangeOf(std::size_t j) const {
-  return std::sqrt(x_[j] * x_[j] + y_[j] * y_[j]);
+  return range_[j];
 }
 
 double ScanRebinner::bearingOf(std::size_t j) const {
