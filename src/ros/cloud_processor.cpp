@@ -40,6 +40,15 @@ bool overlap(const PointField& a, const PointField& b) {
   return a.offset < b.offset + fieldSize(b.datatype) && b.offset < a.offset + fieldSize(a.datatype);
 }
 
+/// Calls visit(std::bool_constant<flag>{}): a run-time flag as a template's.
+template <typename Visit>
+void withFlag(bool flag, Visit&& visit) {
+  if (flag)
+    visit(std::true_type{});
+  else
+    visit(std::false_type{});
+}
+
 /// The x, y and z fields, of one datatype, apart.
 struct Coordinates {
   explicit Coordinates(const sensor_msgs::PointCloud2& cloud)
@@ -62,10 +71,7 @@ struct Coordinates {
   template <typename Visit>
   void withTypeAndPairing(Visit&& visit) const {
     withType([&](auto coordinate) {
-      if (y.offset == x.offset + sizeof coordinate)
-        visit(coordinate, std::true_type{});
-      else
-        visit(coordinate, std::false_type{});
+      withFlag(y.offset == x.offset + sizeof coordinate, [&](auto adjacent) { visit(coordinate, adjacent); });
     });
   }
   const PointField& x;
@@ -106,15 +112,6 @@ T load(const std::uint8_t* at) {
 template <typename T>
 void store(std::uint8_t* at, T value) {
   std::memcpy(at, &value, sizeof value);
-}
-
-/// Calls visit(std::bool_constant<flag>{}): a run-time flag as a template's.
-template <typename Visit>
-void withFlag(bool flag, Visit&& visit) {
-  if (flag)
-    visit(std::true_type{});
-  else
-    visit(std::false_type{});
 }
 
 }  // namespace
