@@ -168,12 +168,8 @@ void RebinConfig::validate() const {
 }
 
 float noReturnValue(const PlanarScan& scan) {
-  const ReturnTest is_return(scan);
-  for (float range : scan.ranges) {
-    if (!is_return(range))
-      return range;
-  }
-  return std::numeric_limits<float>::infinity();
+  const std::size_t first = ReturnTest(scan).firstWithout(scan.ranges.data(), scan.ranges.size());
+  return first < scan.ranges.size() ? scan.ranges[first] : std::numeric_limits<float>::infinity();
 }
 
 ScanRebinner::ScanRebinner(const RebinConfig& config) : config_(config) {
