@@ -8,6 +8,14 @@
 
 #include "pose_eigen.h"
 
+// The per-beam loop of correctPlanarScan() also in an AVX2 variant, chosen when the library loads (GCC on
+// x86-64; its "avx2" has no FMA, which would round differently).
+#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__)
+#define LIDAR_DESKEW_AVX2_CLONES __attribute__((target_clones("avx2", "default")))
+#else
+#define LIDAR_DESKEW_AVX2_CLONES
+#endif
+
 namespace lidar_deskew::core {
 namespace {
 
@@ -233,6 +241,34 @@ void KnotTrajectory::transformAt(double time_offset, Eigen::Matrix3d& rotation,
                 versine * segment.translation_versine + fraction * segment.translation_step;
 }
 
+namespace {
+
+/// The mount's rotation (row-major, 2 x 2) and translation (x, y) in the plane.
+struct PlanarMount {
+  double m00, m01, m10, m11, x, y;
+};
+
+/// One knot segment's beams [first, end) in the laser frame at the reference time: each beam's rotation
+/// (cosine, sine) and translation (in x_out, y_out), as the recurrence left them, turn and move the mounted
+/// point, moved by the segment's screw offset; the results replace the translation. Arithmetic alone over
+/// arrays (vectorised), in the scalar expression's order, so every lane rounds as one beam at a time would.
+LIDAR_DESKEW_AVX2_CLONES void placeBeams(std::size_t first, std::size_t end, const float* __restrict ranges,
+                                         const double* __restrict unit, const double* __restrict cosine,
+                                         const double* __restrict sine, double* __restrict x_out,
+                                         double* __restrict y_out, const PlanarMount mount, double offset_x,
+                                         double offset_y) {
+  for (std::size_t beam = first; beam < end; ++beam) {
+    const double range = ranges[beam];
+    const double x = range * unit[2 * beam], y = range * unit[2 * beam + 1];
+    const double wx = mount.m00 * x + mount.m01 * y + mount.x + offset_x;
+    const double wy = mount.m10 * x + mount.m11 * y + mount.y + offset_y;
+    x_out[beam] = cosine[beam] * wx - sine[beam] * wy + x_out[beam];
+    y_out[beam] = sine[beam] * wx + cosine[beam] * wy + y_out[beam];
+  }
+}
+
+}  // namespace
+
 void KnotTrajectory::correctPlanarScan(const PlanarScan& scan, double beam_period,
                                        const std::vector<Eigen::Vector2d>& directions,
                                        double reference_offset, DeskewedScan& out) const {
@@ -240,13 +276,16 @@ void KnotTrajectory::correctPlanarScan(const PlanarScan& scan, double beam_perio
   const ReturnTest is_return(scan);
   const float* const ranges = scan.ranges.data();
   const float* const intensities = scan.intensities.empty() ? nullptr : scan.intensities.data();
-  const Eigen::Vector2d* const unit = directions.data();
-  const double m00 = mount_rotation_(0, 0), m01 = mount_rotation_(0, 1);
-  const double m10 = mount_rotation_(1, 0), m11 = mount_rotation_(1, 1);
-  const double mount_x = mount_translation_.x(), mount_y = mount_translation_.y();
-  // Written in place: resize() only initialises elements beyond the previous size.
-  out.points.resize(count);
-  DeskewedPoint* write = out.points.data();
+  const double* const unit = directions.empty() ? nullptr : directions.front().data();
+  const PlanarMount mount{mount_rotation_(0, 0), mount_rotation_(0, 1), mount_rotation_(1, 0),
+                          mount_rotation_(1, 1), mount_translation_.x(), mount_translation_.y()};
+  // Per beam: the rotation's cosine and sine, the translation's x, y (then the point's) and z.
+  planar_scratch_.resize(5 * count);
+  double* const cosines = planar_scratch_.data();
+  double* const sines = cosines + count;
+  double* const point_x = sines + count;
+  double* const point_y = point_x + count;
+  double* const point_z = point_y + count;
 
   std::size_t beam = 0;
   while (beam < count) {
@@ -293,26 +332,34 @@ void KnotTrajectory::correctPlanarScan(const PlanarScan& scan, double beam_perio
     double translation_z =
         segment.left_translation.z() + fraction * segment.translation_step.z() + mount_translation_.z();
 
+    // The recurrence alone (serial), then the points of the segment (vectorised).
+    const std::size_t first = beam;
     for (; beam < end; ++beam) {
-      const float range = ranges[beam];
-      if (is_return(range)) {
-        const double x = range * unit[beam].x(), y = range * unit[beam].y();
-        const double wx = m00 * x + m01 * y + mount_x + offset_x;
-        const double wy = m10 * x + m11 * y + mount_y + offset_y;
-        write->position.x() = cosine_total * wx - sine_total * wy + translation_x;
-        write->position.y() = sine_total * wx + cosine_total * wy + translation_y;
-        write->position.z() = translation_z;
-        write->time_offset = static_cast<double>(beam) * beam_period - reference_offset;
-        write->intensity = intensities ? intensities[beam] : 0.0f;
-        write->beam_index = static_cast<std::uint32_t>(beam);
-        ++write;
-      }
+      cosines[beam] = cosine_total;
+      sines[beam] = sine_total;
+      point_x[beam] = translation_x;
+      point_y[beam] = translation_y;
+      point_z[beam] = translation_z;
       const double next_cosine = cosine_total * step_cosine - sine_total * step_sine;
       sine_total = sine_total * step_cosine + cosine_total * step_sine;
       cosine_total = next_cosine;
       translation_x += step_x;
       translation_y += step_y;
       translation_z += step_z;
+    }
+    placeBeams(first, end, ranges, unit, cosines, sines, point_x, point_y, mount, offset_x, offset_y);
+  }
+
+  // The returns, in beam order, run by run of beams with one.
+  out.points.resize(count);  // (resize() only initialises elements beyond the previous size)
+  DeskewedPoint* write = out.points.data();
+  for (beam = 0; beam < count; ++beam) {  // (the beam after a run has no return)
+    const std::size_t run_end = beam + is_return.firstWithout(ranges + beam, count - beam);
+    for (; beam < run_end; ++beam, ++write) {
+      write->position = Eigen::Vector3d(point_x[beam], point_y[beam], point_z[beam]);
+      write->time_offset = static_cast<double>(beam) * beam_period - reference_offset;
+      write->intensity = intensities ? intensities[beam] : 0.0f;
+      write->beam_index = static_cast<std::uint32_t>(beam);
     }
   }
   out.points.resize(static_cast<std::size_t>(write - out.points.data()));

@@ -168,12 +168,8 @@ void RebinConfig::validate() const {
 }
 
 float noReturnValue(const PlanarScan& scan) {
-  const ReturnTest is_return(scan);
-  for (float range : scan.ranges) {
-    if (!is_return(range))
-      return range;
-  }
-  return std::numeric_limits<float>::infinity();
+  const std::size_t first = ReturnTest(scan).firstWithout(scan.ranges.data(), scan.ranges.size());
+  return first < scan.ranges.size() ? scan.ranges[first] : std::numeric_limits<float>::infinity();
 }
 
 ScanRebinner::ScanRebinner(const RebinConfig& config) : config_(config) {
@@ -255,6 +251,25 @@ inline void crossConsecutiveRays(std::size_t count, const double* __restrict px,
     const double numerator = px[k] * ey - py[k] * ex;
     const double range = numerator / (cosine[k] * ey - sine[k] * ex);
     best[k] = (range > 0.0) & (range < best[k]) ? range : best[k];
+  }
+}
+
+/// crossConsecutiveRays() with intensities: where a ray keeps the crossing, it takes the intensity
+/// interpolated there between the link's points (as crossSurface() does, in its order of operations).
+inline void crossConsecutiveRays(std::size_t count, const double* __restrict px, const double* __restrict py,
+                                 const float* __restrict intensity, const double* __restrict cosine,
+                                 const double* __restrict sine, double* __restrict best,
+                                 float* __restrict best_intensity) {
+  for (std::size_t k = 0; k < count; ++k) {
+    const double ex = px[k + 1] - px[k], ey = py[k + 1] - py[k];
+    const double numerator = px[k] * ey - py[k] * ex;
+    const double ray_x = cosine[k], ray_y = sine[k];
+    const double range = numerator / (ray_x * ey - ray_y * ex);
+    const double u = std::min(std::max((px[k] * ray_y - py[k] * ray_x) * range / numerator, 0.0), 1.0);
+    const float value = static_cast<float>((1.0 - u) * intensity[k] + u * intensity[k + 1]);
+    const bool keep = (range > 0.0) & (range < best[k]);
+    best[k] = keep ? range : best[k];
+    best_intensity[k] = keep ? value : best_intensity[k];
   }
 }
 
@@ -647,6 +662,11 @@ LIDAR_DESKEW_AVX2_CLONES void ScanRebinner::readPoints(const Points& points, con
     range[i] = std::sqrt(px * px + py * py);
     beam[i] = points[i].beam_index;
   }
+  if (with_intensities_) {
+    intensity_.resize(n);
+    for (std::size_t j = 0; j < n; ++j)
+      intensity_[j] = points[j].intensity;
+  }
   if (!finite) {
     for (std::size_t j = 0; j < n; ++j) {
       if (!std::isfinite(x[j]) || !std::isfinite(y[j]))
@@ -903,11 +923,16 @@ LIDAR_DESKEW_AVX2_CLONES void ScanRebinner::traceContours(const Points& points, 
     return true;
   };
   // Links begin .. end - 1, each with the one ray between its points' positions, those rays consecutive: a
-  // loop of arithmetic (vectorised), no intensities.
+  // loop of arithmetic (vectorised).
   const auto crossOneRayEach = [&](std::size_t begin, std::size_t end) {
     const std::size_t first_ray = static_cast<std::size_t>(position[begin] + 1);
-    crossConsecutiveRays(end - begin, x + begin, y + begin, ray_cos + first_ray, ray_sin + first_ray,
-                         best_range + first_ray);
+    if (with_intensities) {
+      crossConsecutiveRays(end - begin, x + begin, y + begin, intensity_.data() + begin, ray_cos + first_ray,
+                           ray_sin + first_ray, best_range + first_ray, best_intensity + first_ray);
+    } else {
+      crossConsecutiveRays(end - begin, x + begin, y + begin, ray_cos + first_ray, ray_sin + first_ray,
+                           best_range + first_ray);
+    }
   };
   // 1 where link j is not a surface whose points' positions are consecutive rays (positions are rays or
   // kNoPosition: one more than the last point's is a ray), and for the last point: runs of 0 are the links
@@ -926,18 +951,16 @@ LIDAR_DESKEW_AVX2_CLONES void ScanRebinner::traceContours(const Points& points, 
         ends_.push_back(j);
       left_continues = true;
       for (;; ++j) {
-        std::size_t last = j;  // without intensities, links j .. last - 1 have one ray each, consecutive
-        if (!with_intensities) {
-          last = static_cast<std::size_t>(
-              static_cast<const unsigned char*>(std::memchr(general + j, 1, n - j)) - general);
-          if (last > j)  // (a run of none: nothing to set up)
-            crossOneRayEach(j, last);
-          if (last > j && link[last] != Link::kSurface) {
-            j = last - 1;
-            break;
-          }
-          j = last;
+        // links j .. last - 1 have one ray each, consecutive
+        const std::size_t last = static_cast<std::size_t>(
+            static_cast<const unsigned char*>(std::memchr(general + j, 1, n - j)) - general);
+        if (last > j)  // (a run of none: nothing to set up)
+          crossOneRayEach(j, last);
+        if (last > j && link[last] != Link::kSurface) {
+          j = last - 1;
+          break;
         }
+        j = last;
         const std::size_t q = j + 1 == n ? 0 : j + 1;
         if (!crossSurfaceLink(j, q)) {
           crossSegmentByBearing(x[j], y[j], bearingOf(j), points[j].intensity, x[q], y[q], bearingOf(q),

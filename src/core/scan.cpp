@@ -4,6 +4,10 @@
 #include <cmath>
 #include <sstream>
 
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
 namespace lidar_deskew::core {
 namespace {
 
@@ -175,6 +179,23 @@ BeamTiming resolveTiming(const PlanarScan& scan, const TimingConfig& config) {
                            : config.stamp_at == StampAt::kEnd ? stamp - sweep_ns
                                                               : stamp + sweep_ns;
   return timing;
+}
+
+std::size_t ReturnTest::firstWithout(const float* ranges, std::size_t count) const {
+  std::size_t i = 0;
+#if defined(__SSE2__)
+  // Most beams have a return: four at a time are passed over while all four do (SSE2 is part of x86-64;
+  // the comparisons are the scalar test's, NaN failing both).
+  const __m128 lowest = _mm_set1_ps(lowest_), highest = _mm_set1_ps(highest_);
+  for (; i + 4 <= count; i += 4) {
+    const __m128 range = _mm_loadu_ps(ranges + i);
+    if (_mm_movemask_ps(_mm_and_ps(_mm_cmpge_ps(range, lowest), _mm_cmple_ps(range, highest))) != 0xF)
+      break;
+  }
+#endif
+  while (i < count && (*this)(ranges[i]))
+    ++i;
+  return i;
 }
 
 }  // namespace lidar_deskew::core

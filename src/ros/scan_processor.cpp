@@ -1,10 +1,16 @@
 #include "lidar_deskew/ros/scan_processor.h"
 
 #include <algorithm>
+#include <cstddef>
 #include <cstring>
+#include <iterator>
 #include <utility>
 
 #include <pcl_conversions/pcl_conversions.h>
+
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
 #include "lidar_deskew/ros/conversions.h"
 
@@ -23,28 +29,86 @@ core::TimeNs outputStamp(core::TimeNs reference_time) {
   return reference_time / 1000 * 1000;
 }
 
+static_assert(sizeof(PointXYZITI) == 32 && offsetof(PointXYZITI, intensity) == 16 &&
+                  offsetof(PointXYZITI, t) == 20 && offsetof(PointXYZITI, index) == 24,
+              "toCloud() writes a point as two 16-byte halves");
+
+/// Corrected points read as cloud points, so that the cloud's vector is built from them in one pass
+/// (assign(): one allocation, each point constructed in place, no zeroing before).
+class CloudPointReader {
+ public:
+  using iterator_category = std::random_access_iterator_tag;
+  using value_type = PointXYZITI;
+  using difference_type = std::ptrdiff_t;
+  using pointer = const PointXYZITI*;
+  using reference = PointXYZITI;
+
+  CloudPointReader(const core::DeskewedPoint* point, double t_offset) : point_(point), t_offset_(t_offset) {}
+
+  /// Every byte defined, the padding too (data[3] and the 4 bytes after index are serialised as they
+  /// are): the same scan gives the same message bytes, run after run.
+  PointXYZITI operator*() const {
+    PointXYZITI out;
+    const float t = static_cast<float>(point_->time_offset + t_offset_);
+#if defined(__SSE2__)
+    // Each half of the point as one 16-byte value (SSE2 is part of x86-64); cvtpd2ps rounds as a cast does.
+    const __m128 xy = _mm_cvtpd_ps(_mm_loadu_pd(point_->position.data()));
+    const __m128 z = _mm_cvtsd_ss(_mm_setzero_ps(), _mm_load_sd(point_->position.data() + 2));
+    _mm_store_ps(out.data, _mm_movelh_ps(xy, z));
+    std::int32_t intensity_bits, t_bits;
+    std::memcpy(&intensity_bits, &point_->intensity, sizeof intensity_bits);
+    std::memcpy(&t_bits, &t, sizeof t_bits);
+    _mm_store_si128(reinterpret_cast<__m128i*>(&out.intensity),
+                    _mm_setr_epi32(intensity_bits, t_bits, static_cast<std::int32_t>(point_->beam_index), 0));
+#else
+    std::memset(static_cast<void*>(&out), 0, sizeof out);
+    out.x = static_cast<float>(point_->position.x());
+    out.y = static_cast<float>(point_->position.y());
+    out.z = static_cast<float>(point_->position.z());
+    out.intensity = point_->intensity;
+    out.t = t;
+    out.index = point_->beam_index;
+#endif
+    return out;
+  }
+  CloudPointReader& operator++() {
+    ++point_;
+    return *this;
+  }
+  CloudPointReader operator++(int) {
+    CloudPointReader before = *this;
+    ++point_;
+    return before;
+  }
+  CloudPointReader& operator--() {
+    --point_;
+    return *this;
+  }
+  CloudPointReader& operator+=(difference_type n) {
+    point_ += n;
+    return *this;
+  }
+  difference_type operator-(const CloudPointReader& other) const { return point_ - other.point_; }
+  bool operator==(const CloudPointReader& other) const { return point_ == other.point_; }
+  bool operator!=(const CloudPointReader& other) const { return point_ != other.point_; }
+
+ private:
+  const core::DeskewedPoint* point_;
+  double t_offset_;
+};
+
 /// `t_offset` [s] = reference time - the header's stamp, added to every point's t so that t stays
 /// relative to the stamp (under a microsecond).
 boost::shared_ptr<DeskewedCloud> toCloud(const core::DeskewedScan& corrected, const std_msgs::Header& header,
                                          double t_offset) {
   auto cloud = boost::make_shared<DeskewedCloud>();
   pcl_conversions::toPCL(header, cloud->header);
+  const core::DeskewedPoint* const points = corrected.points.data();
+  cloud->points.assign(CloudPointReader(points, t_offset),
+                       CloudPointReader(points + corrected.points.size(), t_offset));
   // At least one slot: pcl_ros serializes with memcpy from points.data(), which must not be null even
   // for an empty cloud (undefined behaviour found by fuzz_messages).
-  cloud->points.reserve(std::max<std::size_t>(1, corrected.points.size()));
-  for (const core::DeskewedPoint& point : corrected.points) {
-    // Every byte defined, the padding too (data[3] and the 4 bytes after index are serialised as they
-    // are): the same scan gives the same message bytes, run after run.
-    PointXYZITI out;
-    std::memset(static_cast<void*>(&out), 0, sizeof out);
-    out.x = static_cast<float>(point.position.x());
-    out.y = static_cast<float>(point.position.y());
-    out.z = static_cast<float>(point.position.z());
-    out.intensity = point.intensity;
-    out.t = static_cast<float>(point.time_offset + t_offset);
-    out.index = point.beam_index;
-    cloud->points.push_back(out);
-  }
+  cloud->points.reserve(1);
   cloud->width = static_cast<std::uint32_t>(cloud->points.size());
   cloud->height = 1;
   cloud->is_dense = true;

@@ -2,6 +2,10 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdint>
+#include <limits>
+#include <utility>
+#include <vector>
 
 #include "lidar_deskew/core/deskew.h"
 #include "support/truth.h"
@@ -401,17 +405,37 @@ TEST(Deskew, PlanarFastPathMatchesTheGeneralKnotMap) {
   const ArcTrajectory arc({-1.0, -0.5, 0.3}, 6.0, 5.0);
   const Pose2 mount{0.25, 0.05, 0.1};
   const LidarModel model = LidarModel::ild26tri();
-  for (const bool backwards : {false, true}) {
+  // Beams without a return (all kinds, alone and in runs, at the ends) are left out, the rest kept in order.
+  const float nan = std::numeric_limits<float>::quiet_NaN(), infinity = std::numeric_limits<float>::infinity();
+  const std::vector<std::pair<std::size_t, float>> misses = {
+      {0, 0.0f}, {3, nan}, {4, infinity}, {5, 2.0f * model.range_max}, {17, -1.0f}, {359, nan}};
+  for (const int variant : {0, 1, 2}) {
+    const bool backwards = variant == 1;
     auto simulated = sim::simulateScan(world, arc, mount, model, kEpoch, 0.0);
     if (backwards) {  // same ranges, but the driver says beam 0 came last
       simulated.scan.time_increment = -simulated.scan.time_increment;
+    }
+    std::vector<std::uint32_t> returns;
+    if (variant == 2) {
+      for (const auto& [beam, range] : misses)
+        simulated.scan.ranges[beam] = range;
+      for (std::size_t beam = 64; beam < 80; ++beam)
+        simulated.scan.ranges[beam] = infinity;
+    }
+    for (std::uint32_t beam = 0; beam < 360; ++beam) {
+      const float range = simulated.scan.ranges[beam];
+      if (range >= simulated.scan.range_min && range <= simulated.scan.range_max)
+        returns.push_back(beam);
     }
     const test::ClosedFormMotion motion(arc, kEpoch, -0.2, 0.2);
     const core::BeamTiming timing = core::resolveTiming(simulated.scan, {});
     ScanDeskewer deskewer(withReference(Reference::kMiddle));
     DeskewedScan fast;
     deskewer.deskew(simulated.scan, timing, test::toMrpt(mount), motion, fast);
-    ASSERT_EQ(fast.points.size(), 360u);
+    ASSERT_EQ(fast.points.size(), variant == 2 ? 360u - 22u : 360u);
+    ASSERT_EQ(fast.points.size(), returns.size());
+    for (std::size_t i = 0; i < returns.size(); ++i)
+      ASSERT_EQ(fast.points[i].beam_index, returns[i]);
 
     core::KnotTrajectory general;
     const double last = timing.beamOffset(359);
@@ -432,7 +456,7 @@ TEST(Deskew, PlanarFastPathMatchesTheGeneralKnotMap) {
                       core::nsToSeconds(fast.reference_time - timing.first_beam_time),
                   1e-12);
     }
-    EXPECT_LT(largest, 1e-9) << (backwards ? "backwards" : "forwards");
+    EXPECT_LT(largest, 1e-9) << "variant " << variant;
   }
 }
 

@@ -472,6 +472,33 @@ TEST(Rebin, DepthJumpsAreNotBridged) {
   EXPECT_NEAR(out.ranges[SyntheticScan::binOf(0)], 6.0, 1e-5);
 }
 
+// noReturnValue() passes over blocks of beams at a time: the first range outside [range_min, range_max]
+// (or NaN), wherever it lies in a scan of any length, of any kind; +inf when there is none.
+TEST(Rebin, NoReturnValueIsTheFirstMissAtAnyPosition) {
+  core::PlanarScan scan;
+  scan.range_min = 0.1f;
+  scan.range_max = 10.0f;
+  const float kinds[] = {std::numeric_limits<float>::quiet_NaN(), kInf, -kInf, 0.0f, 0.09f, 10.5f};
+  for (std::size_t n = 0; n <= 21; ++n) {
+    for (std::size_t miss = 0; miss <= n; ++miss) {
+      for (const float kind : kinds) {
+        scan.ranges.assign(n, 0.0f);
+        for (std::size_t i = 0; i < n; ++i)
+          scan.ranges[i] = i % 2 == 0 ? 0.1f : 10.0f;  // the bounds are returns
+        if (miss < n) {
+          scan.ranges[miss] = kind;
+          if (miss + 1 < n)
+            scan.ranges[miss + 1] = 12.0f;  // a later miss is not the first
+        }
+        const float value = core::noReturnValue(scan);
+        const float expected = miss < n ? kind : kInf;
+        EXPECT_TRUE(std::isnan(expected) ? std::isnan(value) : value == expected)
+            << n << " beams, miss at " << miss << ": " << value;
+      }
+    }
+  }
+}
+
 TEST(Rebin, ClockwiseGridAndNoReturnValue) {
   core::PlanarScan scan;
   scan.range_min = 0.1f;

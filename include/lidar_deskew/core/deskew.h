@@ -167,6 +167,7 @@ class KnotTrajectory {
   bool planar_ = false;
   bool affine_maps_ = false;  // prepareAffineMaps() since build()
   mutable std::size_t hint_ = 0;
+  mutable std::vector<double> planar_scratch_;  // correctPlanarScan()'s per-beam values
   std::vector<TimeNs> scratch_times_;
   std::vector<mrpt::poses::CPose3D> scratch_poses_;
 };

@@ -205,6 +205,7 @@ class ScanRebinner {
   // Per point, in plain arrays.
   std::vector<double> x_, y_, scale_;      // [m] the corrected point, max(|x|, |y|)
   std::vector<float> x_float_, y_float_;   // [m] the same in float (locatePoints())
+  std::vector<float> intensity_;           // the points' intensities, with_intensities_ (traceContours())
   std::vector<double> range_;              // [m] its range (rangeOf())
   std::vector<std::uint32_t> beam_;        // its beam index
   std::vector<double> cross_, length2_;    // [m^2] its distance from its neighbours' line as |cross| /

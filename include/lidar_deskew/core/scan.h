@@ -120,6 +120,8 @@ class ReturnTest {
       : lowest_(scan.range_min > 0.0f ? scan.range_min : std::numeric_limits<float>::denorm_min()),
         highest_(std::min(scan.range_max, std::numeric_limits<float>::max())) {}
   bool operator()(float range) const { return range >= lowest_ && range <= highest_; }
+  /// The index of the first of `count` ranges without a return; `count` when all have one.
+  std::size_t firstWithout(const float* ranges, std::size_t count) const;
 
  private:
   float lowest_;
