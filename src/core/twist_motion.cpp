@@ -218,6 +218,14 @@ struct LineSums {
   }
 };
 
+/// se3Bracket(), here where the fit calls it in its loops.
+inline Twist bracket(const Twist& a, const Twist& b) {
+  Twist out;
+  out.head<3>() = a.tail<3>().cross(b.head<3>()) - b.tail<3>().cross(a.head<3>());
+  out.tail<3>() = a.tail<3>().cross(b.tail<3>());
+  return out;
+}
+
 }  // namespace
 
 void se3Exp(const Twist& xi, Eigen::Matrix3d& rotation, Eigen::Vector3d& translation) {
@@ -247,19 +255,14 @@ Twist se3Log(const Eigen::Matrix3d& rotation, const Eigen::Vector3d& translation
   return xi;
 }
 
-Twist se3Bracket(const Twist& a, const Twist& b) {
-  Twist out;
-  out.head<3>() = a.tail<3>().cross(b.head<3>()) - b.tail<3>().cross(a.head<3>());
-  out.tail<3>() = a.tail<3>().cross(b.tail<3>());
-  return out;
-}
+Twist se3Bracket(const Twist& a, const Twist& b) { return bracket(a, b); }
 
 Twist TwistMotion::Piece::omega(double tau) const {
   const double tau3 = tau * tau * tau;
-  Twist result = start_twist * tau + slope * (0.5 * tau * tau) + (tau3 / 12.0) * se3Bracket(start_twist, slope);
+  Twist result = start_twist * tau + slope * (0.5 * tau * tau) + (tau3 / 12.0) * bracket(start_twist, slope);
   if (curved)
-    result += curvature * (tau3 / 3.0) + (tau3 * tau / 12.0) * se3Bracket(start_twist, curvature) +
-              (tau3 * tau * tau / 60.0) * se3Bracket(slope, curvature);
+    result += curvature * (tau3 / 3.0) + (tau3 * tau / 12.0) * bracket(start_twist, curvature) +
+              (tau3 * tau * tau / 60.0) * bracket(slope, curvature);
   return result;
 }
 
@@ -524,20 +527,43 @@ void TwistMotion::estimateNoise() {
   // never decrease with the value they come from, so the median passes both tests exactly when more
   // than `middle` of the values do (counted for all components at once). Its value is then only
   // reported (estimatedNoise()): the values are kept, and their median taken when asked.
-  double noisy_floor[6], exact_least[6];
+  // The tests, on a residual v: passes(v). The largest value passing, found from a guess by a few
+  // steps of one ulp, then tells them by one comparison (any value may be NaN: it passes neither).
+  double threshold[6];
   std::size_t passing[6] = {};
+  bool by_threshold = true;
   for (int c = 0; c < 6; ++c) {
-    noisy_floor[c] = kNoisyFloor * floor_[c];
-    exact_least[c] = noisy_floor[c] * kLeastOfKinds;
+    const double noisy_floor = kNoisyFloor * floor_[c];
+    const double exact_least = noisy_floor * kLeastOfKinds;
+    const auto passes = [&](double v) {
+      const double least = v / kResidualMedians[2];
+      return least <= exact_least && least / kLeastOfKinds <= noisy_floor;
+    };
+    if (!(exact_least >= 0.0 && noisy_floor >= 0.0 && std::isfinite(noisy_floor) && std::isfinite(exact_least))) {
+      by_threshold = false;
+      break;
+    }
+    // passes(0) holds, and passes(v) never turns true again once false as v grows.
+    double v = std::min(exact_least, noisy_floor * kLeastOfKinds) * kResidualMedians[2];
+    int steps = 0;
+    for (; steps < 64 && v < INFINITY && passes(v); ++steps)
+      v = std::nextafter(v, INFINITY);
+    for (; steps < 128 && !passes(v); ++steps)
+      v = std::nextafter(v, -INFINITY);
+    by_threshold = by_threshold && steps < 128 && passes(v) && (v == INFINITY || !passes(std::nextafter(v, INFINITY)));
+    threshold[c] = v;
   }
   quartic_residuals_.resize(scored);
   for (std::size_t j = 0; j < scored; ++j) {
     const Twist& residual = sample(j + 5).residual[2];
     quartic_residuals_[j] = residual;
-    for (int c = 0; c < 6; ++c) {
-      const double least = residual[c] / kResidualMedians[2];
-      passing[c] += static_cast<std::size_t>((least <= exact_least[c]) & (least / kLeastOfKinds <= noisy_floor[c]));
+    if (by_threshold) {
+      for (int c = 0; c < 6; ++c)
+        passing[c] += residual[c] <= threshold[c] ? 1 : 0;
     }
+  }
+  if (!by_threshold) {
+    std::fill(std::begin(passing), std::end(passing), 0);  // none told exact here: the medians decide
   }
   quartic_middle_ = middle;
   for (std::size_t c = 0; c < 6; ++c) {
@@ -941,7 +967,7 @@ const MotionSource& TwistMotion::prepare(const MotionSource& raw, TimeNs begin, 
       // twist (two fixed-point steps; the bracket is second order).
       Twist centre = mean;
       for (int iteration = 0; iteration < 2; ++iteration)
-        centre = mean - (h * h / 12.0) * se3Bracket(centre, slope);
+        centre = mean - (h * h / 12.0) * bracket(centre, slope);
       piece.start_twist = centre - 0.5 * h * slope;
       piece.slope = slope;
     } else {
