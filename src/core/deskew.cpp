@@ -101,7 +101,9 @@ void KnotTrajectory::build(TimeNs origin, double span_begin, double span_end, Ti
   bool grid = !motion.sampleTimesComplete() && !screws;
   std::vector<TimeNs>& times = scratch_times_;
   std::vector<mrpt::poses::CPose3D>& base_poses = scratch_poses_;
-  std::vector<mrpt::poses::CPose3D> lefts;
+  // Composed in place (composeFrom allows its right operand to be the result): each base pose becomes
+  // its knot's left factor.
+  const std::vector<mrpt::poses::CPose3D>& lefts = scratch_poses_;
   mount_rotation_ = detail::rotationOf(mount);
   mount_translation_ = detail::translationOf(mount);
   for (;;) {
@@ -130,11 +132,9 @@ void KnotTrajectory::build(TimeNs origin, double span_begin, double span_end, Ti
     const mrpt::poses::CPose3D laser_from_reference_base = (-mount) + (-base_at_reference);
 
     knot_offsets_.resize(times.size());
-    lefts.clear();
-    lefts.reserve(times.size());
     for (std::size_t k = 0; k < times.size(); ++k) {
       knot_offsets_[k] = nsToSeconds(times[k] - origin);
-      lefts.push_back(laser_from_reference_base + base_poses[k]);
+      base_poses[k].composeFrom(laser_from_reference_base, base_poses[k]);
     }
     planar_ = rotatesAboutZOnly(mount_rotation_);
     for (const mrpt::poses::CPose3D& left : lefts)

@@ -218,6 +218,14 @@ struct LineSums {
   }
 };
 
+/// se3Bracket(), here where the fit calls it in its loops.
+inline Twist bracket(const Twist& a, const Twist& b) {
+  Twist out;
+  out.head<3>() = a.tail<3>().cross(b.head<3>()) - b.tail<3>().cross(a.head<3>());
+  out.tail<3>() = a.tail<3>().cross(b.tail<3>());
+  return out;
+}
+
 }  // namespace
 
 void se3Exp(const Twist& xi, Eigen::Matrix3d& rotation, Eigen::Vector3d& translation) {
@@ -247,19 +255,14 @@ Twist se3Log(const Eigen::Matrix3d& rotation, const Eigen::Vector3d& translation
   return xi;
 }
 
-Twist se3Bracket(const Twist& a, const Twist& b) {
-  Twist out;
-  out.head<3>() = a.tail<3>().cross(b.head<3>()) - b.tail<3>().cross(a.head<3>());
-  out.tail<3>() = a.tail<3>().cross(b.tail<3>());
-  return out;
-}
+Twist se3Bracket(const Twist& a, const Twist& b) { return bracket(a, b); }
 
 Twist TwistMotion::Piece::omega(double tau) const {
   const double tau3 = tau * tau * tau;
-  Twist result = start_twist * tau + slope * (0.5 * tau * tau) + (tau3 / 12.0) * se3Bracket(start_twist, slope);
+  Twist result = start_twist * tau + slope * (0.5 * tau * tau) + (tau3 / 12.0) * bracket(start_twist, slope);
   if (curved)
-    result += curvature * (tau3 / 3.0) + (tau3 * tau / 12.0) * se3Bracket(start_twist, curvature) +
-              (tau3 * tau * tau / 60.0) * se3Bracket(slope, curvature);
+    result += curvature * (tau3 / 3.0) + (tau3 * tau / 12.0) * bracket(start_twist, curvature) +
+              (tau3 * tau * tau / 60.0) * bracket(slope, curvature);
   return result;
 }
 
@@ -310,9 +313,12 @@ bool TwistMotion::gatherSamples(const MotionSource& raw, TimeNs begin, TimeNs en
   // there is one. `position` is where it sorts; returns false when the source does not answer, else
   // sets `position` to where it was put.
   const auto ask = [&](std::size_t i, std::size_t& position) {
-    mrpt::poses::CPose3D pose;
+    Eigen::Matrix3d rotation;
+    Eigen::Vector3d translation;
     try {
-      pose = raw.basePose(times_[i]);
+      const mrpt::poses::CPose3D pose = raw.basePose(times_[i]);
+      rotation = detail::rotationOf(pose);
+      translation = detail::translationOf(pose);
     } catch (const MotionUnavailable&) {
       return false;
     }
@@ -326,8 +332,8 @@ bool TwistMotion::gatherSamples(const MotionSource& raw, TimeNs begin, TimeNs en
     // Written in place; nothing computed from it yet (its residuals are read only once computed).
     Sample& answer = cache_[position];
     answer.time = times_[i];
-    answer.rotation = detail::rotationOf(pose);
-    answer.translation = detail::translationOf(pose);
+    answer.rotation = rotation;
+    answer.translation = translation;
     answer.mean.setZero();
     answer.mean_until = -1;
     answer.residual_from = answer.residual_to = -1;
@@ -394,9 +400,27 @@ bool TwistMotion::gatherSamples(const MotionSource& raw, TimeNs begin, TimeNs en
   return samples_.size() >= 2;
 }
 
+const Twist& TwistMotion::estimatedNoise() const {
+  for (std::size_t c = 0; c < 6; ++c) {
+    if (!noise_pending_[c])
+      continue;
+    // As estimateNoise() computes it for the quartics: the least of kinds is theirs.
+    const auto residual = [this, c](std::size_t j) { return quartic_residuals_[j][static_cast<int>(c)]; };
+    std::vector<double> buffer;
+    double guess = NAN;
+    const double least = std::min(
+        static_cast<double>(INFINITY),
+        kthSmallest(quartic_residuals_.size(), quartic_middle_, residual, buffer, guess) / kResidualMedians[2]);
+    noise_[static_cast<int>(c)] = least / kLeastOfKinds;
+    noise_pending_[c] = false;
+  }
+  return noise_;
+}
+
 void TwistMotion::estimateNoise() {
   const std::size_t count = means_.size();
   noise_.setZero();
+  noise_pending_.fill(false);
   // The floor: twist differences that move a point by less than 0.01 mm over a typical interval.
   const auto duration = [this](std::size_t k) { return durations_[k]; };
   typical_ = kthSmallest(count, count / 2, duration, scratch_, typical_guess_);
@@ -453,18 +477,18 @@ void TwistMotion::estimateNoise() {
       for (std::size_t a = 0; a < 5; ++a)
         to_last[a] = apart(i + 5, i + a);
       // Point a's quotients are 4 a to 4 a + 3, with b = 0 .. 4 but a, increasing: b's at 4 a + b - 1
-      // for b > a, at 4 a + b for b < a.
-      Eigen::Array<double, 20, 1> numerators, denominators;
-      for (std::size_t a = 0; a < 5; ++a) {
-        for (std::size_t b = a + 1; b < 5; ++b) {
-          const double difference = apart(i + a, i + b);
-          numerators[static_cast<Eigen::Index>(4 * a + b - 1)] = to_last[b];
-          denominators[static_cast<Eigen::Index>(4 * a + b - 1)] = difference;
-          numerators[static_cast<Eigen::Index>(4 * b + a)] = to_last[a];
-          denominators[static_cast<Eigen::Index>(4 * b + a)] = -difference;
-        }
-      }
-      const Eigen::Array<double, 20, 1> quotients = numerators / denominators;
+      // for b > a, at 4 a + b for b < a (d_ab: centre_a - centre_b).
+      const double d01 = apart(i, i + 1), d02 = apart(i, i + 2), d03 = apart(i, i + 3), d04 = apart(i, i + 4);
+      const double d12 = apart(i + 1, i + 2), d13 = apart(i + 1, i + 3), d14 = apart(i + 1, i + 4);
+      const double d23 = apart(i + 2, i + 3), d24 = apart(i + 2, i + 4), d34 = apart(i + 3, i + 4);
+      const double* const l = to_last;
+      alignas(16) const double numerators[20] = {l[1], l[2], l[3], l[4], l[0], l[2], l[3], l[4], l[0], l[1],
+                                                 l[3], l[4], l[0], l[1], l[2], l[4], l[0], l[1], l[2], l[3]};
+      alignas(16) const double denominators[20] = {d01,  d02,  d03,  d04,  -d01, d12,  d13,
+                                                   d14,  -d02, -d12, d23,  d24,  -d03, -d13,
+                                                   -d23, d34,  -d04, -d14, -d24, -d34};
+      const Eigen::Array<double, 20, 1> quotients = Eigen::Map<const Eigen::Array<double, 20, 1>, Eigen::Aligned16>(numerators) /
+                                                    Eigen::Map<const Eigen::Array<double, 20, 1>, Eigen::Aligned16>(denominators);
       Twist prediction = Twist::Zero();
       double variance = 1.0;
       for (int a = 0; a < 5; ++a) {
@@ -499,7 +523,54 @@ void TwistMotion::estimateNoise() {
   const std::size_t middle = scored / 2;
   // Quartics first, which hold a smooth motion: once a kind puts the noise below what is smoothed
   // (kNoisyFloor floors), the component is exact whatever the others say, and they are not computed.
+  // Whether the quartics' median does so is known without it: the estimate and the noise from it
+  // never decrease with the value they come from, so the median passes both tests exactly when more
+  // than `middle` of the values do (counted for all components at once). Its value is then only
+  // reported (estimatedNoise()): the values are kept, and their median taken when asked.
+  // The tests, on a residual v: passes(v). The largest value passing, found from a guess by a few
+  // steps of one ulp, then tells them by one comparison (any value may be NaN: it passes neither).
+  double threshold[6];
+  std::size_t passing[6] = {};
+  bool by_threshold = true;
+  for (int c = 0; c < 6; ++c) {
+    const double noisy_floor = kNoisyFloor * floor_[c];
+    const double exact_least = noisy_floor * kLeastOfKinds;
+    const auto passes = [&](double v) {
+      const double least = v / kResidualMedians[2];
+      return least <= exact_least && least / kLeastOfKinds <= noisy_floor;
+    };
+    if (!(exact_least >= 0.0 && noisy_floor >= 0.0 && std::isfinite(noisy_floor) && std::isfinite(exact_least))) {
+      by_threshold = false;
+      break;
+    }
+    // passes(0) holds, and passes(v) never turns true again once false as v grows.
+    double v = std::min(exact_least, noisy_floor * kLeastOfKinds) * kResidualMedians[2];
+    int steps = 0;
+    for (; steps < 64 && v < INFINITY && passes(v); ++steps)
+      v = std::nextafter(v, INFINITY);
+    for (; steps < 128 && !passes(v); ++steps)
+      v = std::nextafter(v, -INFINITY);
+    by_threshold = by_threshold && steps < 128 && passes(v) && (v == INFINITY || !passes(std::nextafter(v, INFINITY)));
+    threshold[c] = v;
+  }
+  quartic_residuals_.resize(scored);
+  for (std::size_t j = 0; j < scored; ++j) {
+    const Twist& residual = sample(j + 5).residual[2];
+    quartic_residuals_[j] = residual;
+    if (by_threshold) {
+      for (int c = 0; c < 6; ++c)
+        passing[c] += residual[c] <= threshold[c] ? 1 : 0;
+    }
+  }
+  if (!by_threshold) {
+    std::fill(std::begin(passing), std::end(passing), 0);  // none told exact here: the medians decide
+  }
+  quartic_middle_ = middle;
   for (std::size_t c = 0; c < 6; ++c) {
+    if (passing[c] > middle) {
+      noise_pending_[c] = true;  // exact; noise_ from quartic_residuals_ when asked
+      continue;
+    }
     const double exact_below = kNoisyFloor * floor_[static_cast<int>(c)] * kLeastOfKinds;
     double least = INFINITY;
     for (std::size_t kind = 3; kind-- > 0 && !(least <= exact_below);) {
@@ -515,11 +586,50 @@ void TwistMotion::estimateNoise() {
   // Noisy: above the floor and above kNoiseShare of the component's typical size (the median of its
   // means' magnitudes). Below, what the simple models leave is taken for the motion's own curvature.
   for (std::size_t c = 0; c < 6; ++c) {
-    if (!(noise_[static_cast<int>(c)] > kNoisyFloor * floor_[static_cast<int>(c)]))
+    if (noise_pending_[c] || !(noise_[static_cast<int>(c)] > kNoisyFloor * floor_[static_cast<int>(c)]))
       continue;  // exact: its typical size is not needed
     const auto magnitude = [&, c](std::size_t k) { return std::abs(means_[k][static_cast<int>(c)]); };
     const double typical_size = kthSmallest(count, count / 2, magnitude, scratch_, size_guesses_[c]);
     noisy_[c] = noise_[static_cast<int>(c)] > std::max(kNoisyFloor * floor_[static_cast<int>(c)], kNoiseShare * typical_size);
+  }
+}
+
+void TwistMotion::fitCentredLines(std::size_t j, Twist& slope, std::array<bool, 6>& fitted) const {
+  if (j == 0 || j + 1 >= means_.size())
+    return;
+  // fitInterval's sums, in its order: the x ones shared by the components.
+  const double x[3] = {centres_[j - 1] - centres_[j], centres_[j] - centres_[j], centres_[j + 1] - centres_[j]};
+  LineSums shared;
+  for (const double value : x)
+    shared.add(value, 0.0);
+  const double n = shared.n, sx = shared.sx, sxx = shared.sxx;
+  const double det = n * sxx - sx * sx;
+  if (!(det > 1e-30 * n * sxx))
+    return;
+  const double limit = lineTestLimit(1.0);
+  const Twist& y0 = means_[j - 1];
+  const Twist& y1 = means_[j];
+  const Twist& y2 = means_[j + 1];
+  for (int c = 0; c < 6; ++c) {
+    if (noisy_[static_cast<std::size_t>(c)])
+      continue;
+    double sy = 0.0, sxy = 0.0, syy = 0.0;
+    sy += y0[c];
+    sxy += x[0] * y0[c];
+    syy += y0[c] * y0[c];
+    sy += y1[c];
+    sxy += x[1] * y1[c];
+    syy += y1[c] * y1[c];
+    sy += y2[c];
+    sxy += x[2] * y2[c];
+    syy += y2[c] * y2[c];
+    const double beta = (n * sxy - sx * sy) / det;
+    const double alpha = (sy - beta * sx) / n;
+    const double rss = std::max(0.0, syy - alpha * sy - beta * sxy);
+    if (rss <= floor_[c] * floor_[c] * limit && rss < INFINITY) {
+      slope[c] = beta;
+      fitted[static_cast<std::size_t>(c)] = true;
+    }
   }
 }
 
@@ -837,8 +947,15 @@ const MotionSource& TwistMotion::prepare(const MotionSource& raw, TimeNs begin, 
     piece.duration = durations_[j];
     Twist mean, slope, curvature;
     const double h = piece.duration;
+    std::array<bool, 6> centred{};
+    fitCentredLines(j, slope, centred);
     for (int c = 0; c < 6; ++c) {
-      fitInterval(j, c, mean[c], slope[c], curvature[c]);
+      if (centred[static_cast<std::size_t>(c)]) {
+        mean[c] = means_[j][c];
+        curvature[c] = 0.0;
+      } else {
+        fitInterval(j, c, mean[c], slope[c], curvature[c]);
+      }
       if (std::abs(slope[c]) * h <= floor_[c])
         slope[c] = 0.0;  // a change over the interval below the floor: none
       if (std::abs(curvature[c]) * h * h <= floor_[c])
@@ -850,7 +967,7 @@ const MotionSource& TwistMotion::prepare(const MotionSource& raw, TimeNs begin, 
       // twist (two fixed-point steps; the bracket is second order).
       Twist centre = mean;
       for (int iteration = 0; iteration < 2; ++iteration)
-        centre = mean - (h * h / 12.0) * se3Bracket(centre, slope);
+        centre = mean - (h * h / 12.0) * bracket(centre, slope);
       piece.start_twist = centre - 0.5 * h * slope;
       piece.slope = slope;
     } else {

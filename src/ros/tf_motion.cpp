@@ -3,6 +3,7 @@
 #include <stdexcept>
 
 #include <algorithm>
+#include <cmath>
 
 #include "lidar_deskew/ros/conversions.h"
 
@@ -19,6 +20,22 @@ void accumulate(const OneLinkChain::Link& link, OneLinkChain::Link& accumulated)
 /// [s] A duration of `ns` >= 0 as ros::Duration::toSec gives it: whole seconds plus 1e-9 times the rest.
 double durationSeconds(core::TimeNs ns) {
   return static_cast<double>(ns / 1'000'000'000) + 1e-9 * static_cast<double>(ns % 1'000'000'000);
+}
+
+/// tf2::slerp(from, to, t) at t = +0 (a sample's own stamp), to the bit: its sines of (1 - t) theta
+/// and t theta are those of theta and of +0 (theta is finite and not negative), so sin runs once.
+tf2::Quaternion slerpAtStart(const tf2::Quaternion& from, const tf2::Quaternion& to) {
+  const tf2Scalar theta = from.angleShortestPath(to) / tf2Scalar(2.0);
+  if (!(theta > tf2Scalar(0.0) && std::isfinite(theta)))
+    return tf2::slerp(from, to, tf2Scalar(0.0));
+  const tf2Scalar sine = tf2Sin(theta);
+  const tf2Scalar d = tf2Scalar(1.0) / sine;
+  const tf2Scalar s0 = sine, s1 = 0.0;
+  if (from.dot(to) < 0)
+    return tf2::Quaternion((from.x() * s0 + -to.x() * s1) * d, (from.y() * s0 + -to.y() * s1) * d,
+                           (from.z() * s0 + -to.z() * s1) * d, (from.w() * s0 + -to.w() * s1) * d);
+  return tf2::Quaternion((from.x() * s0 + to.x() * s1) * d, (from.y() * s0 + to.y() * s1) * d,
+                         (from.z() * s0 + to.z() * s1) * d, (from.w() * s0 + to.w() * s1) * d);
 }
 
 OneLinkChain::Link identityLink() {
@@ -88,8 +105,10 @@ void OneLinkChain::add(const std::string& child, const std::string& parent, core
                         transform.rotation.w),
         tf2::Vector3(transform.translation.x, transform.translation.y, transform.translation.z)}});
   // tf2's TimeCache::pruneList: samples older than the cache time before the newest.
-  while (samples_.front().stamp + cache_ < stamp)
+  while (samples_.front().stamp + cache_ < stamp) {
     samples_.pop_front();
+    newer_hint_ -= newer_hint_ > 0 ? 1 : 0;
+  }
   if (!complete_ && before_ + cache_ < stamp)
     complete_ = true;  // tf2 pruned the samples before the first kept too
 }
@@ -105,20 +124,31 @@ bool OneLinkChain::answer(core::TimeNs time, geometry_msgs::Transform& out) cons
   } else if (time == samples_.front().stamp && complete_) {
     link = samples_.front().link;
   } else {
-    // The first sample after `time`: usually among the newest (the fit asks for new samples).
-    auto newer = std::prev(samples_.end());
-    for (int step = 0; step < 8 && std::prev(newer)->stamp > time; ++step)
-      --newer;
-    if (std::prev(newer)->stamp > time) {
-      newer = std::upper_bound(samples_.begin(), newer, time,
-                               [](core::TimeNs t, const Sample& sample) { return t < sample.stamp; });
+    // The first sample after `time` (there is one, and one at or before it): usually the one after
+    // the last found, or that one again (the fit asks for consecutive new samples), else searched.
+    const std::size_t size = samples_.size();
+    std::size_t newer = std::clamp<std::size_t>(newer_hint_, 1, size - 1);
+    const auto brackets = [&](std::size_t index) {
+      return samples_[index - 1].stamp <= time && time < samples_[index].stamp;
+    };
+    if (!brackets(newer)) {
+      if (newer + 1 < size && brackets(newer + 1)) {
+        ++newer;
+      } else {
+        newer = static_cast<std::size_t>(
+            std::upper_bound(samples_.begin() + 1, samples_.end(), time,
+                             [](core::TimeNs t, const Sample& sample) { return t < sample.stamp; }) -
+            samples_.begin());
+      }
     }
-    const Sample& one = *std::prev(newer);
-    const Sample& two = *newer;
+    newer_hint_ = newer;
+    const Sample& one = samples_[newer - 1];
+    const Sample& two = samples_[newer];
     // TimeCache::interpolate: the ratio of ros::Durations' seconds.
     const tf2Scalar ratio = durationSeconds(time - one.stamp) / durationSeconds(two.stamp - one.stamp);
     link.translation.setInterpolate3(one.link.translation, two.link.translation, ratio);
-    link.rotation = tf2::slerp(one.link.rotation, two.link.rotation, ratio);
+    link.rotation = time == one.stamp ? slerpAtStart(one.link.rotation, two.link.rotation)
+                                      : tf2::slerp(one.link.rotation, two.link.rotation, ratio);
   }
   // The walk from the base up: below the link, the link, above it.
   Link accumulated = below_;
@@ -168,9 +198,8 @@ mrpt::poses::CPose3D TfMotionSource::basePose(core::TimeNs time) const {
 
 void TfMotionSource::appendSampleTimes(core::TimeNs begin, core::TimeNs end,
                                        std::vector<core::TimeNs>& times) const {
-  auto it = std::upper_bound(sample_times_.begin(), sample_times_.end(), begin);
-  for (; it != sample_times_.end() && *it < end; ++it)
-    times.push_back(*it);
+  const auto from = std::upper_bound(sample_times_.begin(), sample_times_.end(), begin);
+  times.insert(times.end(), from, std::lower_bound(from, sample_times_.end(), end));
 }
 
 core::TimeNs TfMotionSource::longestGap(core::TimeNs begin, core::TimeNs end) const {

@@ -83,7 +83,7 @@ class TwistMotion final : public MotionSource {
 
   /// The noise [m/s, rad/s] per twist component estimated for the last prepare() (0 when exact or
   /// too few samples).
-  const Twist& estimatedNoise() const { return noise_; }
+  const Twist& estimatedNoise() const;
 
  private:
   struct Sample {
@@ -121,6 +121,10 @@ class TwistMotion final : public MotionSource {
   void estimateNoise();
   /// Fitted (mean twist, slope) of interval j, component c.
   void fitInterval(std::size_t j, int c, double& mean, double& slope, double& curvature) const;
+  /// fitInterval()'s first choice for every exact component of interval j at once (its neighbours'
+  /// x sums are common to them): the centred line, where it explains the three means. Sets `fitted`
+  /// and the slope there; the others are left as they are (fitInterval() decides).
+  void fitCentredLines(std::size_t j, Twist& slope, std::array<bool, 6>& fitted) const;
   /// For each noisy component: the cubic smoothing spline through the window's means, its weight of
   /// the largest likelihood or the smoothest within kLikelihoodMargin of it; kept in smoothed_ for the
   /// sweep's intervals [first, last).
@@ -150,7 +154,12 @@ class TwistMotion final : public MotionSource {
   std::vector<Twist> means_;       // per interval
   std::vector<double> durations_;  // [s] per interval
   std::vector<double> centres_;    // [s] interval mid times from the first sample
-  Twist noise_ = Twist::Zero();
+  mutable Twist noise_ = Twist::Zero();
+  /// Components found exact by the quartics' residuals without their median: noise_ is computed from
+  /// quartic_residuals_ (their `quartic_middle_`-th smallest) when estimatedNoise() asks.
+  mutable std::array<bool, 6> noise_pending_{};
+  std::vector<Twist> quartic_residuals_;
+  std::size_t quartic_middle_ = 0;
   Twist floor_ = Twist::Zero();
   std::array<bool, 6> noisy_{};  // per component: samples followed, slopes not fitted
   std::vector<Piece> pieces_;

@@ -75,6 +75,7 @@ class OneLinkChain {
   FixedLink fixed_link_ = FixedLink::kNone;
   std::deque<core::TimeNs> fixed_link_stamps_;  // sorted: those tf2 holds of the fixed frame's link
   std::deque<Sample> samples_;  // in stamp order: every sample tf2 holds of child from the first on
+  mutable std::size_t newer_hint_ = 0;  // answer(): the index of the sample after the last time asked
   core::TimeNs newest_ = 0;     // [ns] the newest stamp tf2 took of child (0: none)
   /// True when tf2 holds no sample of child before the first kept (tf2 answers its earliest as it is).
   bool complete_ = true;
