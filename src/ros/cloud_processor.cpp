@@ -277,6 +277,20 @@ void writeReturns(const Coordinates& xyz, std::uint32_t time_offset, double time
   }
 }
 
+#if defined(__SSE2__)
+/// The squared norms of two consecutive positions, p[0] and p[1], as a packet: their six coordinates
+/// squared in three packets and summed lane-wise ((x^2 + y^2) + z^2 for the first, (y^2 + z^2) + x^2
+/// for the second: an estimate's input, not squaredNorm() to the bit).
+inline __m128d squaredNorms(const Eigen::Vector3d* p) {
+  static_assert(sizeof(Eigen::Vector3d) == 3 * sizeof(double), "positions packed in an array");
+  const double* const coordinates = p->data();
+  const __m128d x0y0 = _mm_loadu_pd(coordinates), z0x1 = _mm_loadu_pd(coordinates + 2),
+                y1z1 = _mm_loadu_pd(coordinates + 4);
+  const __m128d a = _mm_mul_pd(x0y0, x0y0), b = _mm_mul_pd(z0x1, z0x1), c = _mm_mul_pd(y1z1, y1z1);
+  return _mm_add_pd(_mm_add_pd(_mm_unpacklo_pd(a, c), _mm_unpackhi_pd(a, c)), b);
+}
+#endif
+
 /// Writes the corrected positions of `count` returns (x y z of type T) at their byte offsets in `data`
 /// (the output's), and scales their `range` field (of type R, any unit, at `range_offset`) by the ratio
 /// of the corrected position's distance from the sensor to the raw one's: the range of the corrected
@@ -288,9 +302,6 @@ void writeReturnsAndRanges(const Coordinates& xyz, std::uint32_t range_offset, c
                            const Eigen::Vector3d* raw, const Eigen::Vector3d* corrected, std::size_t count,
                            std::uint8_t* data) {
   const std::uint32_t x = xyz.x.offset, y = xyz.y.offset, z = xyz.z.offset;
-  const auto writeReturn = [&](std::uint8_t* point, const Eigen::Vector3d& position) {
-    storePosition<T, kAdjacentXY>(point, x, y, z, position);
-  };
   const auto value = [&](const std::uint8_t* point) { return static_cast<double>(load<R>(point + range_offset)); };
   // One return's range alone: value * |corrected| / |raw| (norm() is the square root of squaredNorm()).
   const auto writeRange = [&](std::uint8_t* point, const Eigen::Vector3d& corrected_position,
@@ -313,10 +324,9 @@ void writeReturnsAndRanges(const Coordinates& xyz, std::uint32_t range_offset, c
       const RangeEstimates estimates = estimateRanges(
           _mm_setr_epi32(load<std::int32_t>(points[0] + range_offset), load<std::int32_t>(points[1] + range_offset),
                          load<std::int32_t>(points[2] + range_offset), load<std::int32_t>(points[3] + range_offset)),
-          _mm_setr_pd(c[0].squaredNorm(), c[1].squaredNorm()), _mm_setr_pd(c[2].squaredNorm(), c[3].squaredNorm()),
-          _mm_setr_pd(r[0].squaredNorm(), r[1].squaredNorm()), _mm_setr_pd(r[2].squaredNorm(), r[3].squaredNorm()));
+          squaredNorms(c), squaredNorms(c + 2), squaredNorms(r), squaredNorms(r + 2));
       for (int i = 0; i < 4; ++i)
-        writeReturn(points[i], c[i]);
+        storePosition<T, kAdjacentXY>(points[i], x, y, z, c[i]);
       alignas(16) std::int32_t rounded[4];
       _mm_store_si128(reinterpret_cast<__m128i*>(rounded), estimates.rounded);
       if (estimates.sure == 0xf) {
@@ -343,8 +353,8 @@ void writeReturnsAndRanges(const Coordinates& xyz, std::uint32_t range_offset, c
     const Eigen::Array2d corrected_squared(corrected[k].squaredNorm(), corrected[k + 1].squaredNorm());
     const Eigen::Array2d raw_squared(raw[k].squaredNorm(), raw[k + 1].squaredNorm());
     const Eigen::Array2d scaled = values * corrected_squared.sqrt() / raw_squared.sqrt();
-    writeReturn(first, corrected[k]);
-    writeReturn(second, corrected[k + 1]);
+    storePosition<T, kAdjacentXY>(first, x, y, z, corrected[k]);
+    storePosition<T, kAdjacentXY>(second, x, y, z, corrected[k + 1]);
     // (a non-finite value, or a non-finite correction: left as it was)
     const bool first_finite = std::isfinite(scaled[0]), second_finite = std::isfinite(scaled[1]);
     R first_value, second_value;
@@ -357,7 +367,7 @@ void writeReturnsAndRanges(const Coordinates& xyz, std::uint32_t range_offset, c
   }
   if (k < count) {
     std::uint8_t* const point = data + byte_offsets[k];
-    writeReturn(point, corrected[k]);
+    storePosition<T, kAdjacentXY>(point, x, y, z, corrected[k]);
     writeRange(point, corrected[k], raw[k]);
   }
 }
