@@ -550,6 +550,16 @@ TimeNs ScanDeskewer::correctFirings(const std::vector<Eigen::Vector3d>& points, 
                                     TimeNs origin, const mrpt::poses::CPose3D& mount,
                                     const MotionSource& motion, std::vector<Eigen::Vector3d>& corrected) {
   corrected.clear();
+  const TimeNs reference_time = beginFirings(points, firings, origin, mount, motion);
+  corrected.resize(points.size());
+  correctFiringBlock(points, firings, 0, points.size(), corrected.data());
+  return reference_time;
+}
+
+TimeNs ScanDeskewer::beginFirings(const std::vector<Eigen::Vector3d>& points, const Firings& firings,
+                                  TimeNs origin, const mrpt::poses::CPose3D& mount, const MotionSource& motion) {
+  firing_mount_ = nullptr;
+  firing_source_ = nullptr;
   const std::size_t count = firings.offsets.size();
   if (firings.of_point.size() != points.size())
     throw InvalidInput("firings", "give " + std::to_string(firings.of_point.size()) +
@@ -570,31 +580,42 @@ TimeNs ScanDeskewer::correctFirings(const std::vector<Eigen::Vector3d>& points, 
   const TimeNs reference_time = origin + secondsToNs(reference_offset);
   const MotionSource& source =
       motionFor(motion, origin + secondsToNs(earliest), origin + secondsToNs(latest));
-  // (the point count in a local: the stores below may alias the vectors' members for the compiler,
-  // which then reloads points.size() per point)
-  const std::size_t point_count = points.size();
-  corrected.resize(point_count);
-  const Eigen::Vector3d* const in = points.data();
-  Eigen::Vector3d* const out = corrected.data();
-  const std::uint32_t* const firing_of = firings.of_point.data();
-  const double* const offsets = firings.offsets.data();
-
-  if (config_.knot_interval == 0.0) {
-    const ExactChain chain(reference_time, mount, source);
-    for (std::size_t i = 0; i < point_count; ++i) {
-      if (firing_of[i] >= count)
-        throw beyondTheFirings(count);
-      out[i] = chain.apply(origin + secondsToNs(offsets[firing_of[i]]), in[i]);
-    }
+  firing_origin_ = origin;
+  firing_reference_ = reference_time;
+  firing_mount_ = &mount;
+  firing_source_ = &source;
+  if (config_.knot_interval == 0.0)
     return reference_time;
-  }
   trajectory_.build(origin, earliest, latest, reference_time, source.knotInterval(config_.knot_interval),
                     mount, source);
   // The points of one firing share one affine map, built once.
   trajectory_.prepareAffineMaps();
   firing_maps_.resize(count);
   for (std::size_t f = 0; f < count; ++f)
-    trajectory_.transformAt(offsets[f], firing_maps_[f].rotation, firing_maps_[f].translation);
+    trajectory_.transformAt(firings.offsets[f], firing_maps_[f].rotation, firing_maps_[f].translation);
+  return reference_time;
+}
+
+void ScanDeskewer::correctFiringBlock(const std::vector<Eigen::Vector3d>& points, const Firings& firings,
+                                      std::size_t begin, std::size_t end, Eigen::Vector3d* out) const {
+  // (the bounds in locals: the stores below may alias the vectors' members for the compiler, which
+  // then reloads them per point)
+  const std::size_t count = firings.offsets.size();
+  const Eigen::Vector3d* const in = points.data() + begin;
+  const std::uint32_t* const firing_of = firings.of_point.data() + begin;
+  const std::size_t point_count = end - begin;
+  if (point_count == 0)
+    return;
+  if (config_.knot_interval == 0.0) {
+    const double* const offsets = firings.offsets.data();
+    const ExactChain chain(firing_reference_, *firing_mount_, *firing_source_);
+    for (std::size_t i = 0; i < point_count; ++i) {
+      if (firing_of[i] >= count)
+        throw beyondTheFirings(count);
+      out[i] = chain.apply(firing_origin_ + secondsToNs(offsets[firing_of[i]]), in[i]);
+    }
+    return;
+  }
   const FiringMap* const maps = firing_maps_.data();
   for (std::size_t i = 0; i < point_count; ++i) {
     if (firing_of[i] >= count)
@@ -602,7 +623,6 @@ TimeNs ScanDeskewer::correctFirings(const std::vector<Eigen::Vector3d>& points, 
     const FiringMap& map = maps[firing_of[i]];
     out[i].noalias() = map.rotation * in[i] + map.translation;
   }
-  return reference_time;
 }
 
 }  // namespace lidar_deskew::core

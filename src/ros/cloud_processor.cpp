@@ -261,14 +261,15 @@ inline void storePosition(std::uint8_t* point, std::uint32_t x, std::uint32_t y,
   store(point + z, static_cast<T>(position.z()));
 }
 
-/// Writes returns [begin, end)'s corrected positions (x y z of type T) at their byte offsets in
-/// `data` (the output's), and `time_value` into their time field (of type TimeType; none for void).
+/// Writes the corrected positions of `count` returns (x y z of type T) at their byte offsets in `data`
+/// (the output's), and `time_value` into their time field (of type TimeType at `time_offset`; none for
+/// void).
 template <typename T, bool kAdjacentXY, typename TimeType>
 void writeReturns(const Coordinates& xyz, std::uint32_t time_offset, double time_value,
-                  const std::uint32_t* byte_offsets, const Eigen::Vector3d* corrected, std::size_t begin,
-                  std::size_t end, std::uint8_t* data) {
+                  const std::uint32_t* byte_offsets, const Eigen::Vector3d* corrected, std::size_t count,
+                  std::uint8_t* data) {
   const std::uint32_t x = xyz.x.offset, y = xyz.y.offset, z = xyz.z.offset;
-  for (std::size_t k = begin; k < end; ++k) {
+  for (std::size_t k = 0; k < count; ++k) {
     std::uint8_t* const point = data + byte_offsets[k];
     storePosition<T, kAdjacentXY>(point, x, y, z, corrected[k]);
     if constexpr (!std::is_void_v<TimeType>)
@@ -276,7 +277,21 @@ void writeReturns(const Coordinates& xyz, std::uint32_t time_offset, double time
   }
 }
 
-/// Writes returns [begin, end)'s corrected positions (x y z of type T) at their byte offsets in `data`
+#if defined(__SSE2__)
+/// The squared norms of two consecutive positions, p[0] and p[1], as a packet: their six coordinates
+/// squared in three packets and summed lane-wise ((x^2 + y^2) + z^2 for the first, (y^2 + z^2) + x^2
+/// for the second: an estimate's input, not squaredNorm() to the bit).
+inline __m128d squaredNorms(const Eigen::Vector3d* p) {
+  static_assert(sizeof(Eigen::Vector3d) == 3 * sizeof(double), "positions packed in an array");
+  const double* const coordinates = p->data();
+  const __m128d x0y0 = _mm_loadu_pd(coordinates), z0x1 = _mm_loadu_pd(coordinates + 2),
+                y1z1 = _mm_loadu_pd(coordinates + 4);
+  const __m128d a = _mm_mul_pd(x0y0, x0y0), b = _mm_mul_pd(z0x1, z0x1), c = _mm_mul_pd(y1z1, y1z1);
+  return _mm_add_pd(_mm_add_pd(_mm_unpacklo_pd(a, c), _mm_unpackhi_pd(a, c)), b);
+}
+#endif
+
+/// Writes the corrected positions of `count` returns (x y z of type T) at their byte offsets in `data`
 /// (the output's), and scales their `range` field (of type R, any unit, at `range_offset`) by the ratio
 /// of the corrected position's distance from the sensor to the raw one's: the range of the corrected
 /// point, in the driver's unit and from the driver's own origin (Ouster's beam origin lies a few cm from
@@ -284,8 +299,8 @@ void writeReturns(const Coordinates& xyz, std::uint32_t time_offset, double time
 /// within their type; a value that is not finite, or would not be, is left as it was.
 template <typename T, bool kAdjacentXY, typename R>
 void writeReturnsAndRanges(const Coordinates& xyz, std::uint32_t range_offset, const std::uint32_t* byte_offsets,
-                           const Eigen::Vector3d* raw, const Eigen::Vector3d* corrected, std::size_t begin,
-                           std::size_t end, std::uint8_t* data) {
+                           const Eigen::Vector3d* raw, const Eigen::Vector3d* corrected, std::size_t count,
+                           std::uint8_t* data) {
   const std::uint32_t x = xyz.x.offset, y = xyz.y.offset, z = xyz.z.offset;
   const auto value = [&](const std::uint8_t* point) { return static_cast<double>(load<R>(point + range_offset)); };
   // One return's range alone: value * |corrected| / |raw| (norm() is the square root of squaredNorm()).
@@ -295,13 +310,13 @@ void writeReturnsAndRanges(const Coordinates& xyz, std::uint32_t range_offset, c
     if (std::isfinite(scaled))  // (a non-finite value, or a non-finite correction: left as it was)
       store(point + range_offset, toFieldValue<R>(scaled));
   };
-  std::size_t k = begin;
+  std::size_t k = 0;
 #if defined(__SSE2__)
   // A 32-bit integer range (Ouster's uint32 mm), four returns at a time: estimated in floats, in
   // doubles only where the estimate cannot tell the rounded value (estimateRanges: a few per cent).
   // Two double square roots and a division per return bounded the loop below.
   if constexpr (std::is_integral_v<R> && sizeof(R) == 4) {
-    for (; k + 3 < end; k += 4) {
+    for (; k + 3 < count; k += 4) {
       std::uint8_t* const points[4] = {data + byte_offsets[k], data + byte_offsets[k + 1],
                                        data + byte_offsets[k + 2], data + byte_offsets[k + 3]};
       const Eigen::Vector3d* const c = corrected + k;
@@ -309,8 +324,7 @@ void writeReturnsAndRanges(const Coordinates& xyz, std::uint32_t range_offset, c
       const RangeEstimates estimates = estimateRanges(
           _mm_setr_epi32(load<std::int32_t>(points[0] + range_offset), load<std::int32_t>(points[1] + range_offset),
                          load<std::int32_t>(points[2] + range_offset), load<std::int32_t>(points[3] + range_offset)),
-          _mm_setr_pd(c[0].squaredNorm(), c[1].squaredNorm()), _mm_setr_pd(c[2].squaredNorm(), c[3].squaredNorm()),
-          _mm_setr_pd(r[0].squaredNorm(), r[1].squaredNorm()), _mm_setr_pd(r[2].squaredNorm(), r[3].squaredNorm()));
+          squaredNorms(c), squaredNorms(c + 2), squaredNorms(r), squaredNorms(r + 2));
       for (int i = 0; i < 4; ++i)
         storePosition<T, kAdjacentXY>(points[i], x, y, z, c[i]);
       alignas(16) std::int32_t rounded[4];
@@ -332,7 +346,7 @@ void writeReturnsAndRanges(const Coordinates& xyz, std::uint32_t range_offset, c
   // Two returns at a time: their square roots and quotients in packets (Eigen's, IEEE's as
   // std::sqrt's), their conversions to R too (toFieldValues). Three scalar roots and divisions per
   // return bounded the loop; the writes take the time they leave.
-  for (; k + 1 < end; k += 2) {
+  for (; k + 1 < count; k += 2) {
     std::uint8_t* const first = data + byte_offsets[k];
     std::uint8_t* const second = data + byte_offsets[k + 1];
     const Eigen::Array2d values(value(first), value(second));
@@ -351,19 +365,19 @@ void writeReturnsAndRanges(const Coordinates& xyz, std::uint32_t range_offset, c
     if (second_finite)
       store(second + range_offset, second_value);
   }
-  if (k < end) {
+  if (k < count) {
     std::uint8_t* const point = data + byte_offsets[k];
     storePosition<T, kAdjacentXY>(point, x, y, z, corrected[k]);
     writeRange(point, corrected[k], raw[k]);
   }
 }
 
-/// Writes `time_value` into the time field (of type TimeType, at `time_offset`) of returns [begin, end).
+/// Writes `time_value` into the time field (of type TimeType, at `time_offset`) of `count` returns.
 template <typename TimeType>
-void writeTimes(std::uint32_t time_offset, double time_value, const std::uint32_t* byte_offsets,
-                std::size_t begin, std::size_t end, std::uint8_t* data) {
+void writeTimes(std::uint32_t time_offset, double time_value, const std::uint32_t* byte_offsets, std::size_t count,
+                std::uint8_t* data) {
   const auto typed = static_cast<TimeType>(time_value);
-  for (std::size_t k = begin; k < end; ++k)
+  for (std::size_t k = 0; k < count; ++k)
     store(data + byte_offsets[k] + time_offset, typed);
 }
 
@@ -493,11 +507,20 @@ CloudOutputs CloudProcessor::correct(const PreparedCloud& prepared, const mrpt::
                                      const core::MotionSource& motion) {
   checkTfGaps(params_.max_tf_gap, motion, prepared.first, prepared.last);
   const core::TimeNs reference =
-      deskewer_.deskewFirings(prepared.points, prepared.firings, prepared.first, mount, motion, corrected_);
+      deskewer_.beginFirings(prepared.points, prepared.firings, prepared.first, mount, motion);
 
+  // The output: the input's header and layout; its data copied below, a block at a time.
   const sensor_msgs::PointCloud2& input = *prepared.message;
-  auto output = boost::make_shared<sensor_msgs::PointCloud2>(input);
+  auto output = boost::make_shared<sensor_msgs::PointCloud2>();
+  output->header = input.header;
   output->header.stamp = toRosTime(reference);
+  output->height = input.height;
+  output->width = input.width;
+  output->fields = input.fields;
+  output->is_bigendian = input.is_bigendian;
+  output->point_step = input.point_step;
+  output->row_step = input.row_step;
+  output->is_dense = input.is_dense;
   const Coordinates xyz(input);
   const CloudTimeField& time = prepared.time_field;
   // The time each corrected position holds: the reference, 0 from the new stamp.
@@ -512,42 +535,67 @@ CloudOutputs CloudProcessor::correct(const PreparedCloud& prepared, const mrpt::
   const PointField* const range =
       separateField(input, "range",
                     {&xyz.x, &xyz.y, &xyz.z, prepared.byAzimuth() ? nullptr : fieldNamed(input, time.name)});
-  // Written a block of returns at a time, their ranges scaled while its lines are still in cache: one
-  // pass over the output (a second pass for the ranges cost as much as the first).
+  // A block of returns at a time: corrected into a buffer that stays in cache (with cloud_scan, into
+  // corrected_, which the scan reads), their points' bytes copied from the input and overwritten while
+  // they are in cache too: one pass over the input and one over the output, none over a buffer of every
+  // corrected position. (Returns lie in increasing byte order, each within the data: checkCloudLayout.)
   constexpr std::size_t kBlock = 256;
-  std::uint8_t* const data = output->data.data();
+  const std::size_t returns = prepared.points.size();
+  const bool keep = params_.cloud_scan.enabled;
+  corrected_.resize(keep ? returns : std::min(kBlock, returns));
+  std::vector<std::uint8_t>& out = output->data;
+  out.reserve(input.data.size());
+  const std::uint8_t* const in = input.data.data();
   const std::uint32_t* const byte_offsets = prepared.byte_offsets.data();
-  const Eigen::Vector3d* const corrected = corrected_.data();
-  for (std::size_t begin = 0; begin < corrected_.size(); begin += kBlock) {
-    const std::size_t end = std::min(begin + kBlock, corrected_.size());
-    xyz.withTypeAndPairing([&](auto coordinate, auto adjacent_xy) {
-      using T = decltype(coordinate);
-      constexpr bool kAdjacentXY = decltype(adjacent_xy)::value;
-      if (range == nullptr) {
-        if (prepared.byAzimuth()) {  // no field to rewrite
-          writeReturns<T, kAdjacentXY, void>(xyz, 0, 0.0, byte_offsets, corrected, begin, end, data);
-          return;
-        }
-        withFieldType(time.datatype, [&](auto typed) {
-          writeReturns<T, kAdjacentXY, decltype(typed)>(xyz, time.offset, time_value, byte_offsets, corrected,
-                                                        begin, end, data);
+  const Eigen::Vector3d* const raw = prepared.points.data();
+  const std::uint32_t point_step = input.point_step;
+  // write(byte_offsets, raw, corrected, count, data) writes a block, of the types dispatched once.
+  const auto writeBlocks = [&](auto&& write) {
+    for (std::size_t begin = 0; begin < returns; begin += kBlock) {
+      const std::size_t end = std::min(begin + kBlock, returns);
+      Eigen::Vector3d* const corrected = corrected_.data() + (keep ? begin : 0);
+      deskewer_.correctFiringBlock(prepared.points, prepared.firings, begin, end, corrected);
+      out.insert(out.end(), in + out.size(), in + byte_offsets[end - 1] + point_step);
+      write(byte_offsets + begin, raw + begin, corrected, end - begin, out.data());
+    }
+  };
+  xyz.withTypeAndPairing([&](auto coordinate, auto adjacent_xy) {
+    using T = decltype(coordinate);
+    constexpr bool kAdjacentXY = decltype(adjacent_xy)::value;
+    if (range == nullptr) {
+      if (prepared.byAzimuth()) {  // no field to rewrite
+        writeBlocks([&](const std::uint32_t* offsets, const Eigen::Vector3d*, const Eigen::Vector3d* corrected,
+                        std::size_t count, std::uint8_t* data) {
+          writeReturns<T, kAdjacentXY, void>(xyz, 0, 0.0, offsets, corrected, count, data);
         });
         return;
       }
-      withFieldType(range->datatype, [&](auto typed) {
-        writeReturnsAndRanges<T, kAdjacentXY, decltype(typed)>(xyz, range->offset, byte_offsets,
-                                                               prepared.points.data(), corrected, begin, end, data);
-      });
-      if (!prepared.byAzimuth()) {
-        withFieldType(time.datatype, [&](auto typed) {
-          writeTimes<decltype(typed)>(time.offset, time_value, byte_offsets, begin, end, data);
+      withFieldType(time.datatype, [&](auto typed) {
+        writeBlocks([&](const std::uint32_t* offsets, const Eigen::Vector3d*, const Eigen::Vector3d* corrected,
+                        std::size_t count, std::uint8_t* data) {
+          writeReturns<T, kAdjacentXY, decltype(typed)>(xyz, time.offset, time_value, offsets, corrected, count,
+                                                        data);
         });
-      }
+      });
+      return;
+    }
+    withFieldType(range->datatype, [&](auto typed) {
+      using R = decltype(typed);
+      writeBlocks([&](const std::uint32_t* offsets, const Eigen::Vector3d* raw_points,
+                      const Eigen::Vector3d* corrected, std::size_t count, std::uint8_t* data) {
+        writeReturnsAndRanges<T, kAdjacentXY, R>(xyz, range->offset, offsets, raw_points, corrected, count, data);
+        if (!prepared.byAzimuth()) {
+          withFieldType(time.datatype, [&](auto time_typed) {
+            writeTimes<decltype(time_typed)>(time.offset, time_value, offsets, count, data);
+          });
+        }
+      });
     });
-  }
+  });
+  out.insert(out.end(), in + out.size(), in + input.data.size());  // past the last return
   CloudOutputs outputs;
   outputs.cloud = output;
-  if (params_.cloud_scan.enabled)
+  if (keep)
     outputs.scan = planarScan(corrected_, prepared, output->header);
   return outputs;
 }

@@ -197,6 +197,16 @@ class ScanDeskewer {
   TimeNs deskewFirings(const std::vector<Eigen::Vector3d>& points, const Firings& firings, TimeNs origin,
                        const mrpt::poses::CPose3D& mount, const MotionSource& motion,
                        std::vector<Eigen::Vector3d>& corrected);
+  /// deskewFirings() in steps, for a caller that takes the corrected points a block at a time (no
+  /// buffer of them all): beginFirings() checks the firings, builds their maps and returns the reference
+  /// time [ns] (throws like deskewFirings()); then correctFiringBlock() writes the corrected positions of
+  /// points [begin, end) to out[0, end - begin), the same numbers deskewFirings() writes (throws
+  /// InvalidInput("firings") for a point's firing beyond the firings). `points`, `firings`, `mount` and
+  /// `motion` must stay as they were, and alive, until the last block.
+  TimeNs beginFirings(const std::vector<Eigen::Vector3d>& points, const Firings& firings, TimeNs origin,
+                      const mrpt::poses::CPose3D& mount, const MotionSource& motion);
+  void correctFiringBlock(const std::vector<Eigen::Vector3d>& points, const Firings& firings, std::size_t begin,
+                          std::size_t end, Eigen::Vector3d* out) const;
 
   /// Corrects points with their own times (3D clouds): `points` [m] in the laser frame, each measured
   /// at origin + time_offsets[i] [s]. The reference time is the earliest / middle / latest of those.
@@ -230,12 +240,16 @@ class ScanDeskewer {
   // deskewPoints(): the kept points and their firings
   std::vector<Eigen::Vector3d> kept_points_;
   Firings kept_firings_;
-  // deskewFirings(): the affine map of each firing
+  // deskewFirings(): the affine map of each firing (exact mode: none; the chain's ends instead)
   struct FiringMap {
     Eigen::Matrix3d rotation;
     Eigen::Vector3d translation;
   };
   std::vector<FiringMap> firing_maps_;
+  TimeNs firing_origin_ = 0;
+  TimeNs firing_reference_ = 0;
+  const mrpt::poses::CPose3D* firing_mount_ = nullptr;
+  const MotionSource* firing_source_ = nullptr;
 };
 
 /// The exact chain for one point, composed with MRPT per call (exact mode, tests):

@@ -96,6 +96,7 @@ class CloudProcessor {
   CloudTimeConfig time_config_;
   core::TimeNs time_offset_;  ///< [ns] the time_offset parameter, added to every point's time
   core::ScanDeskewer deskewer_;
+  /// The corrected returns of a block (with cloud_scan, of the whole cloud: the scan reads them).
   std::vector<Eigen::Vector3d> corrected_;
 };
 
