@@ -17,15 +17,29 @@ using detail::fastAtan2;
 
 PlacedScan::PlacedScan(TimeNs time, const Eigen::Vector2d& origin, double bearing_step,
                        std::vector<Eigen::Vector2d> points)
-    : time_(time), origin_(origin), points_(std::move(points)) {
+    : points_(std::move(points)) {
+  checkBearingStep(bearing_step);
+  index(time, origin, bearing_step);
+}
+
+void PlacedScan::checkBearingStep(double bearing_step) {
   if (!(bearing_step > 0.0) || !std::isfinite(bearing_step))
     throw InvalidInput("bearing_step", "must be a positive angle");
+}
+
+void PlacedScan::index(TimeNs time, const Eigen::Vector2d& origin, double bearing_step) {
+  time_ = time;
+  origin_ = origin;
   // Bins of one bearing step, at most 2^16 round the circle.
   bin_width_ = std::max(bearing_step, kTwoPi / 65536.0);
   inverse_bin_width_ = 1.0 / bin_width_;
   const std::size_t bins = static_cast<std::size_t>(std::ceil(kTwoPi / bin_width_));
+  // A counting sort, stable: bin_begin_[b + 1] counts bin b's points, then (summed) is where bin b + 1
+  // begins; each point goes to its bin's cursor bin_begin_[b], which so ends at bin b's end (bin b + 1's
+  // begin), and the whole is moved up by one. Each thread keeps its points' bins between calls.
+  thread_local std::vector<std::uint32_t> bin_of;
   bin_begin_.assign(bins + 1, 0);
-  std::vector<std::uint32_t> bin_of(points_.size());
+  bin_of.resize(points_.size());
   for (std::size_t i = 0; i < points_.size(); ++i) {
     bin_of[i] = static_cast<std::uint32_t>(binOf(points_[i]));
     ++bin_begin_[bin_of[i] + 1];
@@ -34,12 +48,14 @@ PlacedScan::PlacedScan(TimeNs time, const Eigen::Vector2d& origin, double bearin
     bin_begin_[b + 1] += bin_begin_[b];
   by_bin_.resize(points_.size());
   binned_.resize(points_.size());
-  std::vector<std::uint32_t> fill(bin_begin_.begin(), bin_begin_.end() - 1);
   for (std::size_t i = 0; i < points_.size(); ++i) {
-    const std::uint32_t k = fill[bin_of[i]]++;
+    const std::uint32_t k = bin_begin_[bin_of[i]]++;
     by_bin_[k] = static_cast<std::uint32_t>(i);
     binned_[k] = points_[i];
   }
+  for (std::size_t b = bins; b > 0; --b)
+    bin_begin_[b] = bin_begin_[b - 1];
+  bin_begin_[0] = 0;
 }
 
 std::size_t PlacedScan::binOf(const Eigen::Vector2d& point) const {
@@ -123,17 +139,24 @@ bool PlacedScan::contourHit(const Eigen::Vector2d& query, double radius, Contour
 
 PlacedScan placeCorrected(const DeskewedScan& corrected, const mrpt::poses::CPose3D& laser,
                           double bearing_step, std::size_t stride) {
+  PlacedScan placed;
+  placeCorrected(corrected, laser, bearing_step, stride, placed);
+  return placed;
+}
+
+void placeCorrected(const DeskewedScan& corrected, const mrpt::poses::CPose3D& laser, double bearing_step,
+                    std::size_t stride, PlacedScan& placed) {
   stride = std::max<std::size_t>(1, stride);
-  std::vector<Eigen::Vector2d> points;
-  points.reserve(corrected.points.size() / stride + 1);
-  for (std::size_t i = 0; i < corrected.points.size(); i += stride) {
-    const Eigen::Vector3d& position = corrected.points[i].position;
-    double x, y, z;
-    laser.composePoint(position.x(), position.y(), position.z(), x, y, z);
-    points.emplace_back(x, y);
-  }
-  return PlacedScan(corrected.reference_time, {laser.x(), laser.y()},
-                    bearing_step * static_cast<double>(stride), std::move(points));
+  placed.assign(corrected.reference_time, {laser.x(), laser.y()}, bearing_step * static_cast<double>(stride),
+                [&](std::vector<Eigen::Vector2d>& points) {
+                  points.reserve(corrected.points.size() / stride + 1);
+                  for (std::size_t i = 0; i < corrected.points.size(); i += stride) {
+                    const Eigen::Vector3d& position = corrected.points[i].position;
+                    double x, y, z;
+                    laser.composePoint(position.x(), position.y(), position.z(), x, y, z);
+                    points.emplace_back(x, y);
+                  }
+                });
 }
 
 PlacedScan placeRaw(const PlanarScan& scan, const mrpt::poses::CPose3D& laser, TimeNs time,
