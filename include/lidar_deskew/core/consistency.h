@@ -79,6 +79,7 @@ class PlacedScan {
   std::vector<std::uint32_t> bin_begin_;  // points of bin b: by_bin_[bin_begin_[b] .. bin_begin_[b+1])
   std::vector<std::uint32_t> by_bin_;
   std::vector<Eigen::Vector2d> binned_;  // points_[by_bin_[k]]: the bins' points in one array
+  std::vector<std::uint32_t> bin_of_;    // index()'s: each point's bin (kept for the storage)
 };
 
 /// A corrected scan placed with `laser`, the laser's pose in the fixed frame at its reference time;
