@@ -13,19 +13,49 @@ constexpr double kTwoPi = 2.0 * M_PI;
 constexpr int kBinReach = 2;  // bins searched on either side of the query's
 using detail::fastAtan2;
 
+/// `pose`.composePoint() in the x-y plane, inline: the same products and sums in the same order (MRPT's
+/// is an out-of-line call with optional Jacobians, per point).
+class PlanarCompose {
+ public:
+  explicit PlanarCompose(const mrpt::poses::CPose3D& pose)
+      : r00_(pose.getRotationMatrix()(0, 0)), r01_(pose.getRotationMatrix()(0, 1)),
+        r02_(pose.getRotationMatrix()(0, 2)), r10_(pose.getRotationMatrix()(1, 0)),
+        r11_(pose.getRotationMatrix()(1, 1)), r12_(pose.getRotationMatrix()(1, 2)), x_(pose.x()), y_(pose.y()) {}
+  Eigen::Vector2d operator()(double x, double y, double z) const {
+    return {r00_ * x + r01_ * y + r02_ * z + x_, r10_ * x + r11_ * y + r12_ * z + y_};
+  }
+
+ private:
+  double r00_, r01_, r02_, r10_, r11_, r12_, x_, y_;
+};
+
 }  // namespace
 
 PlacedScan::PlacedScan(TimeNs time, const Eigen::Vector2d& origin, double bearing_step,
                        std::vector<Eigen::Vector2d> points)
-    : time_(time), origin_(origin), points_(std::move(points)) {
+    : points_(std::move(points)) {
+  checkBearingStep(bearing_step);
+  index(time, origin, bearing_step);
+}
+
+void PlacedScan::checkBearingStep(double bearing_step) {
   if (!(bearing_step > 0.0) || !std::isfinite(bearing_step))
     throw InvalidInput("bearing_step", "must be a positive angle");
+}
+
+void PlacedScan::index(TimeNs time, const Eigen::Vector2d& origin, double bearing_step) {
+  time_ = time;
+  origin_ = origin;
   // Bins of one bearing step, at most 2^16 round the circle.
   bin_width_ = std::max(bearing_step, kTwoPi / 65536.0);
   inverse_bin_width_ = 1.0 / bin_width_;
   const std::size_t bins = static_cast<std::size_t>(std::ceil(kTwoPi / bin_width_));
+  // A counting sort, stable: bin_begin_[b + 1] counts bin b's points, then (summed) is where bin b + 1
+  // begins; each point goes to its bin's cursor bin_begin_[b], which so ends at bin b's end (bin b + 1's
+  // begin), and the whole is moved up by one.
+  std::vector<std::uint32_t>& bin_of = bin_of_;
   bin_begin_.assign(bins + 1, 0);
-  std::vector<std::uint32_t> bin_of(points_.size());
+  bin_of.resize(points_.size());
   for (std::size_t i = 0; i < points_.size(); ++i) {
     bin_of[i] = static_cast<std::uint32_t>(binOf(points_[i]));
     ++bin_begin_[bin_of[i] + 1];
@@ -34,12 +64,14 @@ PlacedScan::PlacedScan(TimeNs time, const Eigen::Vector2d& origin, double bearin
     bin_begin_[b + 1] += bin_begin_[b];
   by_bin_.resize(points_.size());
   binned_.resize(points_.size());
-  std::vector<std::uint32_t> fill(bin_begin_.begin(), bin_begin_.end() - 1);
   for (std::size_t i = 0; i < points_.size(); ++i) {
-    const std::uint32_t k = fill[bin_of[i]]++;
+    const std::uint32_t k = bin_begin_[bin_of[i]]++;
     by_bin_[k] = static_cast<std::uint32_t>(i);
     binned_[k] = points_[i];
   }
+  for (std::size_t b = bins; b > 0; --b)
+    bin_begin_[b] = bin_begin_[b - 1];
+  bin_begin_[0] = 0;
 }
 
 std::size_t PlacedScan::binOf(const Eigen::Vector2d& point) const {
@@ -123,32 +155,38 @@ bool PlacedScan::contourHit(const Eigen::Vector2d& query, double radius, Contour
 
 PlacedScan placeCorrected(const DeskewedScan& corrected, const mrpt::poses::CPose3D& laser,
                           double bearing_step, std::size_t stride) {
+  PlacedScan placed;
+  placeCorrected(corrected, laser, bearing_step, stride, placed);
+  return placed;
+}
+
+void placeCorrected(const DeskewedScan& corrected, const mrpt::poses::CPose3D& laser, double bearing_step,
+                    std::size_t stride, PlacedScan& placed) {
   stride = std::max<std::size_t>(1, stride);
-  std::vector<Eigen::Vector2d> points;
-  points.reserve(corrected.points.size() / stride + 1);
-  for (std::size_t i = 0; i < corrected.points.size(); i += stride) {
-    const Eigen::Vector3d& position = corrected.points[i].position;
-    double x, y, z;
-    laser.composePoint(position.x(), position.y(), position.z(), x, y, z);
-    points.emplace_back(x, y);
-  }
-  return PlacedScan(corrected.reference_time, {laser.x(), laser.y()},
-                    bearing_step * static_cast<double>(stride), std::move(points));
+  placed.assign(corrected.reference_time, {laser.x(), laser.y()}, bearing_step * static_cast<double>(stride),
+                [&](std::vector<Eigen::Vector2d>& points) {
+                  const PlanarCompose compose(laser);
+                  const std::size_t count = corrected.points.size();
+                  points.reserve(count / stride + 1);
+                  for (std::size_t i = 0; i < count; i += stride) {
+                    const Eigen::Vector3d& position = corrected.points[i].position;
+                    points.push_back(compose(position.x(), position.y(), position.z()));
+                  }
+                });
 }
 
 PlacedScan placeRaw(const PlanarScan& scan, const mrpt::poses::CPose3D& laser, TimeNs time,
                     std::size_t stride) {
   stride = std::max<std::size_t>(1, stride);
   const ReturnTest is_return(scan);
+  const PlanarCompose compose(laser);
   std::vector<Eigen::Vector2d> points;
   std::size_t returns = 0;
   for (std::size_t i = 0; i < scan.ranges.size(); ++i) {
     if (!is_return(scan.ranges[i]) || returns++ % stride != 0)
       continue;
     const double angle = scan.angle_min + static_cast<double>(i) * scan.angle_increment;
-    double x, y, z;
-    laser.composePoint(scan.ranges[i] * std::cos(angle), scan.ranges[i] * std::sin(angle), 0.0, x, y, z);
-    points.emplace_back(x, y);
+    points.push_back(compose(scan.ranges[i] * std::cos(angle), scan.ranges[i] * std::sin(angle), 0.0));
   }
   return PlacedScan(time, {laser.x(), laser.y()},
                     std::abs(static_cast<double>(scan.angle_increment)) * static_cast<double>(stride),

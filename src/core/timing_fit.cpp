@@ -62,10 +62,11 @@ Curve evaluate(const TimingFit& fit, const TimingConfig& timing, const std::vect
   }
   curve.scored.assign(curve.members.size(), 1);
   std::vector<char> scored;
+  std::vector<PlacedScan> placed;  // reused from offset to offset
   for (double offset : offsets) {
     TimingConfig shifted = timing;
     shifted.time_offset = offset;
-    const std::vector<double> distances = fit.pairDistances(shifted, scored, coarse);
+    const std::vector<double> distances = fit.pairDistances(shifted, scored, coarse, placed);
     std::vector<double> row(curve.members.size());
     for (std::size_t m = 0; m < curve.members.size(); ++m) {
       const std::size_t p = curve.members[m];
@@ -374,46 +375,52 @@ std::size_t TimingFit::turningScans() const {
                        [&](const ScanMotion& m) { return std::abs(m.turn_rate) >= config_.turning_rate; });
 }
 
-PlacedScan TimingFit::placeOne(std::size_t i, const TimingConfig& timing, ScanDeskewer& deskewer,
-                               DeskewedScan& corrected, bool& placed, std::size_t stride) const {
+bool TimingFit::placeOne(std::size_t i, const TimingConfig& timing, ScanDeskewer& deskewer,
+                         DeskewedScan& corrected, PlacedScan& result, std::size_t stride) const {
   const PlanarScan& scan = scans_[i];
-  placed = false;
   try {
     deskewer.deskew(scan, resolveTiming(scan, timing), mount_, motion_, corrected);
-    PlacedScan result = placeCorrected(corrected, motion_.basePose(corrected.reference_time) + mount_,
-                                       std::abs(static_cast<double>(scan.angle_increment)), stride);
-    placed = true;
-    return result;
+    placeCorrected(corrected, motion_.basePose(corrected.reference_time) + mount_,
+                   std::abs(static_cast<double>(scan.angle_increment)), stride, result);
+    return true;
   } catch (const InvalidInput&) {
   } catch (const MotionUnavailable&) {
   }
-  return {};
+  result.clear();
+  return false;
 }
 
 std::vector<PlacedScan> TimingFit::place(const TimingConfig& timing, std::vector<char>* placed_scans,
                                          bool coarse, const std::vector<char>* needed) const {
+  std::vector<PlacedScan> placed;
+  place(timing, placed, placed_scans, coarse, needed);
+  return placed;
+}
+
+void TimingFit::place(const TimingConfig& timing, std::vector<PlacedScan>& placed,
+                      std::vector<char>* placed_scans, bool coarse, const std::vector<char>* needed) const {
   DeskewConfig deskew;
   deskew.reference = Reference::kMiddle;
   if (coarse)
     deskew.interpolation = Interpolation::kLinear;
   ScanDeskewer deskewer(deskew);
   DeskewedScan corrected;
-  std::vector<PlacedScan> placed;
-  placed.reserve(scans_.size());
+  placed.resize(scans_.size());
   if (placed_scans)
     placed_scans->assign(scans_.size(), 0);
   for (std::size_t i = 0; i < scans_.size(); ++i) {
     bool ok = false;
-    // The coarse search places at most about 360 returns a scan (every k-th): it only has to find the
-    // valley.
-    const std::size_t stride = coarse ? (scans_[i].ranges.size() + 359) / 360 : 1;
-    placed.push_back(needed && !(*needed)[i]
-                         ? PlacedScan()
-                         : placeOne(i, timing, deskewer, corrected, ok, std::max<std::size_t>(1, stride)));
+    if (needed && !(*needed)[i]) {
+      placed[i].clear();
+    } else {
+      // The coarse search places at most about 360 returns a scan (every k-th): it only has to find the
+      // valley.
+      const std::size_t stride = coarse ? (scans_[i].ranges.size() + 359) / 360 : 1;
+      ok = placeOne(i, timing, deskewer, corrected, placed[i], std::max<std::size_t>(1, stride));
+    }
     if (placed_scans)
       (*placed_scans)[i] = ok;
   }
-  return placed;
 }
 
 std::vector<PlacedScan> TimingFit::placeRaw() const {
@@ -447,10 +454,9 @@ std::vector<double> TimingFit::pairDistances(const TimingConfig& timing) const {
 }
 
 std::vector<double> TimingFit::pairDistances(const TimingConfig& timing, std::vector<char>& scored,
-                                             bool coarse) const {
+                                             bool coarse, std::vector<PlacedScan>& placed) const {
   std::vector<char> placed_scans;
-  const std::vector<PlacedScan> placed =
-      place(timing, &placed_scans, coarse, coarse ? &coarse_scans_ : nullptr);
+  place(timing, placed, &placed_scans, coarse, coarse ? &coarse_scans_ : nullptr);
   const ConsistencyConfig& measure = coarse ? config_.coarse_consistency : config_.consistency;
   std::vector<double> distances(pairs_.size(), std::numeric_limits<double>::quiet_NaN());
   scored.assign(pairs_.size(), 0);

@@ -26,6 +26,19 @@ class PlacedScan {
   PlacedScan(TimeNs time, const Eigen::Vector2d& origin, double bearing_step,
              std::vector<Eigen::Vector2d> points);
 
+  /// As the constructor, in this scan's own storage (no allocation once it has held as many points and
+  /// bins): the points are what `fill` appends to the emptied vector it is given. A search that places
+  /// every scan at each of hundreds of timings reuses its scans so.
+  template <typename Fill>
+  void assign(TimeNs time, const Eigen::Vector2d& origin, double bearing_step, Fill fill) {
+    checkBearingStep(bearing_step);
+    points_.clear();
+    fill(points_);
+    index(time, origin, bearing_step);
+  }
+  /// Empties the scan (as a default-constructed one), keeping its storage for assign().
+  void clear() { points_.clear(); }
+
   TimeNs time() const { return time_; }
   const Eigen::Vector2d& origin() const { return origin_; }
   const std::vector<Eigen::Vector2d>& points() const { return points_; }
@@ -53,6 +66,9 @@ class PlacedScan {
   bool contourHit(const Eigen::Vector2d& query, double radius, ContourHit& hit) const;
 
  private:
+  static void checkBearingStep(double bearing_step);
+  // Sets time, origin and the bins of points_.
+  void index(TimeNs time, const Eigen::Vector2d& origin, double bearing_step);
   std::size_t binOf(const Eigen::Vector2d& point) const;
 
   TimeNs time_ = 0;
@@ -63,6 +79,7 @@ class PlacedScan {
   std::vector<std::uint32_t> bin_begin_;  // points of bin b: by_bin_[bin_begin_[b] .. bin_begin_[b+1])
   std::vector<std::uint32_t> by_bin_;
   std::vector<Eigen::Vector2d> binned_;  // points_[by_bin_[k]]: the bins' points in one array
+  std::vector<std::uint32_t> bin_of_;    // index()'s: each point's bin (kept for the storage)
 };
 
 /// A corrected scan placed with `laser`, the laser's pose in the fixed frame at its reference time;
@@ -70,6 +87,9 @@ class PlacedScan {
 /// scan's |angle_increment|.
 PlacedScan placeCorrected(const DeskewedScan& corrected, const mrpt::poses::CPose3D& laser,
                           double bearing_step, std::size_t stride = 1);
+/// The same into `placed`, reusing its storage (PlacedScan::assign()).
+void placeCorrected(const DeskewedScan& corrected, const mrpt::poses::CPose3D& laser, double bearing_step,
+                    std::size_t stride, PlacedScan& placed);
 /// A raw scan placed with `laser`, the laser's pose at `time` [ns]: every return drawn as if measured
 /// then (what a consumer that does not deskew sees); every `stride`-th return kept, as placeCorrected().
 PlacedScan placeRaw(const PlanarScan& scan, const mrpt::poses::CPose3D& laser, TimeNs time,

@@ -124,6 +124,10 @@ class TimingFit {
   /// `needed`, when given, says which scans to place (the others are left empty).
   std::vector<PlacedScan> place(const TimingConfig& timing, std::vector<char>* placed = nullptr,
                                 bool coarse = false, const std::vector<char>* needed = nullptr) const;
+  /// The same into `scans`, reusing its scans' storage (PlacedScan::assign()): a search that places
+  /// every scan at each of hundreds of timings passes the same vector each time.
+  void place(const TimingConfig& timing, std::vector<PlacedScan>& scans, std::vector<char>* placed = nullptr,
+             bool coarse = false, const std::vector<char>* needed = nullptr) const;
   /// The raw scans (every beam at the stamp) placed in the fixed frame; empty where the motion does not
   /// cover the stamp.
   std::vector<PlacedScan> placeRaw() const;
@@ -133,14 +137,17 @@ class TimingFit {
   /// Per pair, the distance under `timing` [m] (NaN: no overlap) and in `scored` whether the motion
   /// placed both scans (0: the pair cannot be scored under this timing). `coarse`: the coarse search's
   /// measure (TimingFitConfig::coarse_consistency, tf's straight line between samples) on its pairs
-  /// only (TimingFitConfig::coarse_pairs; the others unscored).
-  std::vector<double> pairDistances(const TimingConfig& timing, std::vector<char>& scored, bool coarse) const;
+  /// only (TimingFitConfig::coarse_pairs; the others unscored). `placed`: the scans placed, reused from
+  /// call to call (pass the same vector each time; its contents are of no further use).
+  std::vector<double> pairDistances(const TimingConfig& timing, std::vector<char>& scored, bool coarse,
+                                    std::vector<PlacedScan>& placed) const;
   /// The indices in pairs() of the pairs the coarse search scores, in order.
   std::vector<std::size_t> coarsePairs() const;
 
  private:
-  PlacedScan placeOne(std::size_t i, const TimingConfig& timing, ScanDeskewer& deskewer,
-                      DeskewedScan& corrected, bool& placed, std::size_t stride = 1) const;
+  // Scan i corrected under `timing` into `result`; false (`result` emptied) where it cannot be placed.
+  bool placeOne(std::size_t i, const TimingConfig& timing, ScanDeskewer& deskewer, DeskewedScan& corrected,
+                PlacedScan& result, std::size_t stride = 1) const;
 
   std::vector<PlanarScan> all_scans_;  // sorted by stamp
   std::vector<PlanarScan> scans_;      // those the motion covers under the shift
