@@ -254,6 +254,14 @@ inline void crossConsecutiveRays(std::size_t count, const double* __restrict px,
   }
 }
 
+/// The intensity where a ray from the origin through (ray_x, ray_y) meets the segment from a to b at
+/// `range`, with numerator = a x (b - a) (as the crossings compute it): interpolated between the ends'.
+inline float intensityAt(double ax, double ay, double ray_x, double ray_y, double range, double numerator,
+                         float a_intensity, float b_intensity) {
+  const double u = std::min(std::max((ax * ray_y - ay * ray_x) * range / numerator, 0.0), 1.0);
+  return static_cast<float>((1.0 - u) * a_intensity + u * b_intensity);
+}
+
 /// crossConsecutiveRays() with intensities: where a ray keeps the crossing, it takes the intensity
 /// interpolated there between the link's points (as crossSurface() does, in its order of operations).
 inline void crossConsecutiveRays(std::size_t count, const double* __restrict px, const double* __restrict py,
@@ -265,8 +273,8 @@ inline void crossConsecutiveRays(std::size_t count, const double* __restrict px,
     const double numerator = px[k] * ey - py[k] * ex;
     const double ray_x = cosine[k], ray_y = sine[k];
     const double range = numerator / (ray_x * ey - ray_y * ex);
-    const double u = std::min(std::max((px[k] * ray_y - py[k] * ray_x) * range / numerator, 0.0), 1.0);
-    const float value = static_cast<float>((1.0 - u) * intensity[k] + u * intensity[k + 1]);
+    const float value =
+        intensityAt(px[k], py[k], ray_x, ray_y, range, numerator, intensity[k], intensity[k + 1]);
     const bool keep = (range > 0.0) & (range < best[k]);
     best[k] = keep ? range : best[k];
     best_intensity[k] = keep ? value : best_intensity[k];
@@ -414,8 +422,7 @@ void ScanRebinner::offerRays(std::int32_t ray, std::int32_t count, double ax, do
       continue;
     best_range[ray] = range;
     if (with_intensities_) {
-      const double u = std::min(std::max((ax * ray_y - ay * ray_x) * range / numerator, 0.0), 1.0);
-      best_intensity_[ray] = static_cast<float>((1.0 - u) * a_intensity + u * b_intensity);
+      best_intensity_[ray] = intensityAt(ax, ay, ray_x, ray_y, range, numerator, a_intensity, b_intensity);
     }
   }
 }
@@ -915,8 +922,8 @@ LIDAR_DESKEW_AVX2_CLONES void ScanRebinner::traceContours(const Points& points, 
       if (range > 0.0 && range < best_range[ray]) {
         best_range[ray] = range;
         if (with_intensities) {
-          const double u = std::min(std::max((x[j] * ray_y - y[j] * ray_x) * range / numerator, 0.0), 1.0);
-          best_intensity[ray] = static_cast<float>((1.0 - u) * points[j].intensity + u * points[q].intensity);
+          best_intensity[ray] = intensityAt(x[j], y[j], ray_x, ray_y, range, numerator, points[j].intensity,
+                                            points[q].intensity);
         }
       }
     }
