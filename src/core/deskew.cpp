@@ -8,6 +8,10 @@
 
 #include "pose_eigen.h"
 
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
 // The per-beam loop of correctPlanarScan() also in an AVX2 variant, chosen when the library loads (GCC on
 // x86-64; its "avx2" has no FMA, which would round differently).
 #if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__)
@@ -267,6 +271,76 @@ LIDAR_DESKEW_AVX2_CLONES void placeBeams(std::size_t first, std::size_t end, con
   }
 }
 
+/// The per-beam arrays correctPlanarScan() fills: each beam's rotation (cosine, sine) and translation.
+struct PlanarBeams {
+  double *cosine, *sine, *x, *y, *z;
+};
+
+/// A run's beams [from, end) by the recurrence from (cosine, sine, x, y, z) at `from`: serial, each beam's
+/// rotation and translation from the last one's.
+template <typename Run>
+void stepRun(const Run& run, std::size_t from, double cosine, double sine, double x, double y, double z,
+             const PlanarBeams& out) {
+  for (std::size_t beam = from; beam < run.end; ++beam) {
+    out.cosine[beam] = cosine;
+    out.sine[beam] = sine;
+    out.x[beam] = x;
+    out.y[beam] = y;
+    out.z[beam] = z;
+    const double next_cosine = cosine * run.step_cosine - sine * run.step_sine;
+    sine = sine * run.step_cosine + cosine * run.step_sine;
+    cosine = next_cosine;
+    x += run.step_x;
+    y += run.step_y;
+    z += run.step_z;
+  }
+}
+
+/// Two runs' recurrences at once: over their common length one in each SSE2 lane, by stepRun()'s
+/// operations (the same bits), so that the two chains of multiplications and additions overlap instead
+/// of one waiting on each of its own results; the longer run's rest alone.
+template <typename Run>
+void stepRuns(const Run& a, const Run& b, const PlanarBeams& out) {
+#if defined(__SSE2__)
+  const std::size_t common = std::min(a.end - a.first, b.end - b.first);
+  __m128d cosine = _mm_set_pd(b.cosine, a.cosine), sine = _mm_set_pd(b.sine, a.sine);
+  __m128d x = _mm_set_pd(b.x, a.x), y = _mm_set_pd(b.y, a.y), z = _mm_set_pd(b.z, a.z);
+  const __m128d step_cosine = _mm_set_pd(b.step_cosine, a.step_cosine);
+  const __m128d step_sine = _mm_set_pd(b.step_sine, a.step_sine);
+  const __m128d step_x = _mm_set_pd(b.step_x, a.step_x), step_y = _mm_set_pd(b.step_y, a.step_y);
+  const __m128d step_z = _mm_set_pd(b.step_z, a.step_z);
+  for (std::size_t i = 0; i < common; ++i) {
+    const std::size_t beam_a = a.first + i, beam_b = b.first + i;
+    _mm_storel_pd(out.cosine + beam_a, cosine);
+    _mm_storeh_pd(out.cosine + beam_b, cosine);
+    _mm_storel_pd(out.sine + beam_a, sine);
+    _mm_storeh_pd(out.sine + beam_b, sine);
+    _mm_storel_pd(out.x + beam_a, x);
+    _mm_storeh_pd(out.x + beam_b, x);
+    _mm_storel_pd(out.y + beam_a, y);
+    _mm_storeh_pd(out.y + beam_b, y);
+    _mm_storel_pd(out.z + beam_a, z);
+    _mm_storeh_pd(out.z + beam_b, z);
+    const __m128d next_cosine = _mm_sub_pd(_mm_mul_pd(cosine, step_cosine), _mm_mul_pd(sine, step_sine));
+    sine = _mm_add_pd(_mm_mul_pd(sine, step_cosine), _mm_mul_pd(cosine, step_sine));
+    cosine = next_cosine;
+    x = _mm_add_pd(x, step_x);
+    y = _mm_add_pd(y, step_y);
+    z = _mm_add_pd(z, step_z);
+  }
+  // The longer run's rest (one lane's values).
+  const bool a_longer = a.end - a.first > common;
+  const Run& rest = a_longer ? a : b;
+  const auto lane = [a_longer](__m128d v) {
+    return a_longer ? _mm_cvtsd_f64(v) : _mm_cvtsd_f64(_mm_unpackhi_pd(v, v));
+  };
+  stepRun(rest, rest.first + common, lane(cosine), lane(sine), lane(x), lane(y), lane(z), out);
+#else
+  stepRun(a, a.first, a.cosine, a.sine, a.x, a.y, a.z, out);
+  stepRun(b, b.first, b.cosine, b.sine, b.x, b.y, b.z, out);
+#endif
+}
+
 }  // namespace
 
 void KnotTrajectory::correctPlanarScan(const PlanarScan& scan, double beam_period,
@@ -287,6 +361,8 @@ void KnotTrajectory::correctPlanarScan(const PlanarScan& scan, double beam_perio
   double* const point_y = point_x + count;
   double* const point_z = point_y + count;
 
+  // The knot segments' runs of beams, then their recurrences two at a time, then the points (vectorised).
+  planar_runs_.clear();
   std::size_t beam = 0;
   while (beam < count) {
     // The knot segment of this beam, and the beams [beam, end) inside it.
@@ -309,45 +385,45 @@ void KnotTrajectory::correctPlanarScan(const PlanarScan& scan, double beam_perio
       while (end < count && inSegment(end))
         ++end;
     }
+    PlanarRun& run = planar_runs_.emplace_back();
+    run.first = beam;
+    run.end = end;
     // Rot_z(left_yaw + s yaw_step) at the first beam and its step per beam; the translation
     // left_translation + s translation_step likewise.
     const double fraction_step = beam_period * segment.inverse_duration;
     const double fraction = (first_offset - segment.begin_offset) * segment.inverse_duration;
     double sine, versine;
     sinAndVersine(fraction * segment.yaw_step, sine, versine);
-    double cosine_total = segment.left_yaw_cos - segment.left_yaw_cos * versine - segment.left_yaw_sin * sine;
-    double sine_total = segment.left_yaw_sin - segment.left_yaw_sin * versine + segment.left_yaw_cos * sine;
-    double step_sine, step_versine;
-    sinAndVersine(fraction_step * segment.yaw_step, step_sine, step_versine);
-    const double step_cosine = 1.0 - step_versine;
-    const double step_x = fraction_step * segment.translation_step.x();
-    const double step_y = fraction_step * segment.translation_step.y();
-    const double step_z = fraction_step * segment.translation_step.z();
+    run.cosine = segment.left_yaw_cos - segment.left_yaw_cos * versine - segment.left_yaw_sin * sine;
+    run.sine = segment.left_yaw_sin - segment.left_yaw_sin * versine + segment.left_yaw_cos * sine;
+    double step_versine;
+    sinAndVersine(fraction_step * segment.yaw_step, run.step_sine, step_versine);
+    run.step_cosine = 1.0 - step_versine;
+    run.step_x = fraction_step * segment.translation_step.x();
+    run.step_y = fraction_step * segment.translation_step.y();
+    run.step_z = fraction_step * segment.translation_step.z();
     // Screw segments: R(s) (w + o) + p_k - R_k o, o = screw_offset (0 for straight segments).
     const double offset_x = segment.screw_offset.x(), offset_y = segment.screw_offset.y();
-    double translation_x = segment.left_translation.x() + fraction * segment.translation_step.x() -
-                           (segment.left_yaw_cos * offset_x - segment.left_yaw_sin * offset_y);
-    double translation_y = segment.left_translation.y() + fraction * segment.translation_step.y() -
-                           (segment.left_yaw_sin * offset_x + segment.left_yaw_cos * offset_y);
-    double translation_z =
-        segment.left_translation.z() + fraction * segment.translation_step.z() + mount_translation_.z();
-
-    // The recurrence alone (serial), then the points of the segment (vectorised).
-    const std::size_t first = beam;
-    for (; beam < end; ++beam) {
-      cosines[beam] = cosine_total;
-      sines[beam] = sine_total;
-      point_x[beam] = translation_x;
-      point_y[beam] = translation_y;
-      point_z[beam] = translation_z;
-      const double next_cosine = cosine_total * step_cosine - sine_total * step_sine;
-      sine_total = sine_total * step_cosine + cosine_total * step_sine;
-      cosine_total = next_cosine;
-      translation_x += step_x;
-      translation_y += step_y;
-      translation_z += step_z;
-    }
-    placeBeams(first, end, ranges, unit, cosines, sines, point_x, point_y, mount, offset_x, offset_y);
+    run.offset_x = offset_x;
+    run.offset_y = offset_y;
+    run.x = segment.left_translation.x() + fraction * segment.translation_step.x() -
+            (segment.left_yaw_cos * offset_x - segment.left_yaw_sin * offset_y);
+    run.y = segment.left_translation.y() + fraction * segment.translation_step.y() -
+            (segment.left_yaw_sin * offset_x + segment.left_yaw_cos * offset_y);
+    run.z = segment.left_translation.z() + fraction * segment.translation_step.z() + mount_translation_.z();
+    beam = end;
+  }
+  const PlanarBeams beams{cosines, sines, point_x, point_y, point_z};
+  std::size_t r = 0;
+  for (; r + 1 < planar_runs_.size(); r += 2)
+    stepRuns(planar_runs_[r], planar_runs_[r + 1], beams);
+  if (r < planar_runs_.size()) {
+    const PlanarRun& run = planar_runs_[r];
+    stepRun(run, run.first, run.cosine, run.sine, run.x, run.y, run.z, beams);
+  }
+  for (const PlanarRun& run : planar_runs_) {
+    placeBeams(run.first, run.end, ranges, unit, cosines, sines, point_x, point_y, mount, run.offset_x,
+               run.offset_y);
   }
 
   // The returns, in beam order, run by run of beams with one.

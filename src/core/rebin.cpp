@@ -6,6 +6,7 @@
 #include <limits>
 
 #include "fast_atan2.h"
+#include "kth_smallest.h"
 
 #if defined(__SSE2__)
 #include <emmintrin.h>
@@ -763,6 +764,7 @@ LIDAR_DESKEW_AVX2_CLONES void ScanRebinner::classifyLinks() {
   // word, or finds a word of 8 candidates' k-th directly.
   const unsigned char* const candidate = candidate_.data();
   std::size_t rank = 0, take = 0, k = 0;  // candidates before `word`, the next one sampled
+  bool any_nan = false;
   for (std::size_t word = 0; take < candidate_count; word += 8) {
     std::uint64_t bytes;
     std::memcpy(&bytes, candidate + word, sizeof bytes);
@@ -774,15 +776,26 @@ LIDAR_DESKEW_AVX2_CLONES void ScanRebinner::classifyLinks() {
         for (std::size_t seen = candidate[j]; seen <= take - rank; seen += candidate[j])
           ++j;
       }
-      noise_sample_[k++] = std::abs(cross_[j]) / std::sqrt(length2_[j]);
+      const double residual = std::abs(cross_[j]) / std::sqrt(length2_[j]);
+      noise_sample_[k++] = residual;
+      any_nan = any_nan || std::isnan(residual);
     }
     rank += in_word;
   }
+  // The median: what nth_element puts in the middle, the same value found without its branches (from
+  // the last scan's, as the first pivot) unless a residual is NaN (0/0), which the selection does not order.
   double median = 0.0;
   if (!noise_sample_.empty()) {
     const auto middle = noise_sample_.begin() + static_cast<std::ptrdiff_t>(noise_sample_.size() / 2);
-    std::nth_element(noise_sample_.begin(), middle, noise_sample_.end());
-    median = *middle;
+    if (any_nan) {
+      std::nth_element(noise_sample_.begin(), middle, noise_sample_.end());
+      median = *middle;
+    } else {
+      const double* const sample = noise_sample_.data();
+      median = detail::kthSmallest(
+          noise_sample_.size(), noise_sample_.size() / 2, [sample](std::size_t i) { return sample[i]; },
+          noise_select_, noise_median_);
+    }
   }
   flat_tolerance_ = kFlatToleranceFloor + kFlatToleranceMedians * median;
   // Flat: within the tolerance of the line through its neighbours (an infinite cross: no such line); a

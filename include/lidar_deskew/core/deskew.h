@@ -159,6 +159,14 @@ class KnotTrajectory {
     Eigen::Vector3d translation_base, translation_sine, translation_versine;  // [m]
   };
   std::size_t segmentFor(double time_offset) const;
+  /// correctPlanarScan()'s beams [first, end) of one knot segment: the rotation (cosine, sine) and the
+  /// translation (x, y, z) at the first, their steps per beam, and the segment's screw offset.
+  struct PlanarRun {
+    std::size_t first, end;
+    double cosine, sine, step_cosine, step_sine;
+    double x, y, z, step_x, step_y, step_z;
+    double offset_x, offset_y;
+  };
 
   std::vector<double> knot_offsets_;   // [s] from the origin, strictly increasing
   std::vector<Segment> segments_;      // one per knot pair (one, degenerate, for a single knot)
@@ -168,6 +176,7 @@ class KnotTrajectory {
   bool affine_maps_ = false;  // prepareAffineMaps() since build()
   mutable std::size_t hint_ = 0;
   mutable std::vector<double> planar_scratch_;  // correctPlanarScan()'s per-beam values
+  mutable std::vector<PlanarRun> planar_runs_;  // and its runs
   std::vector<TimeNs> scratch_times_;
   std::vector<mrpt::poses::CPose3D> scratch_poses_;
 };

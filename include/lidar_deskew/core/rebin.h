@@ -2,6 +2,7 @@
 // and costmaps need a LaserScan with a fixed grid and beam count.
 #pragma once
 
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <limits>
@@ -223,6 +224,8 @@ class ScanRebinner {
   std::vector<unsigned char> general_;       // link j needs more than crossOneRayEach (traceContours())
   std::vector<double> corner_x_, corner_y_;  // [m] the corner of a kCorner link
   std::vector<double> noise_sample_;         // [m] scratch for the noise estimate
+  std::vector<double> noise_select_;         // scratch for its median
+  double noise_median_ = NAN;                // [m] of the last scan: the next one's first pivot
   std::vector<std::size_t> ends_;            // points where a contour ends (or a lone return)
   double flat_tolerance_ = 0.0;              // [m] of the last scan
 };
