@@ -104,10 +104,8 @@ void KnotTrajectory::build(TimeNs origin, double span_begin, double span_end, Ti
   const bool screws = motion.screwsBetweenSamples();
   bool grid = !motion.sampleTimesComplete() && !screws;
   std::vector<TimeNs>& times = scratch_times_;
-  std::vector<mrpt::poses::CPose3D>& base_poses = scratch_poses_;
-  // Composed in place (composeFrom allows its right operand to be the result): each base pose becomes
-  // its knot's left factor.
-  const std::vector<mrpt::poses::CPose3D>& lefts = scratch_poses_;
+  // Composed in place: each base pose becomes its knot's left factor.
+  std::vector<Knot>& knots = scratch_knots_;
   mount_rotation_ = detail::rotationOf(mount);
   mount_translation_ = detail::translationOf(mount);
   for (;;) {
@@ -125,24 +123,29 @@ void KnotTrajectory::build(TimeNs origin, double span_begin, double span_end, Ti
 
     // One motion query per knot (the reference time is usually one of them), then the chain prefix and
     // one MRPT composition per knot.
-    base_poses.clear();
-    for (const TimeNs time : times)
-      base_poses.push_back(motion.basePose(time));
+    knots.resize(times.size());
+    for (std::size_t k = 0; k < times.size(); ++k)
+      motion.baseTransform(times[k], knots[k].rotation, knots[k].translation);
     const auto reference_knot = std::lower_bound(times.begin(), times.end(), reference_time);
-    const mrpt::poses::CPose3D base_at_reference =
-        reference_knot != times.end() && *reference_knot == reference_time
-            ? base_poses[static_cast<std::size_t>(reference_knot - times.begin())]
-            : motion.basePose(reference_time);
+    mrpt::poses::CPose3D base_at_reference;
+    if (reference_knot != times.end() && *reference_knot == reference_time) {
+      const Knot& knot = knots[static_cast<std::size_t>(reference_knot - times.begin())];
+      base_at_reference = detail::poseOf(knot.rotation, knot.translation);
+    } else {
+      base_at_reference = motion.basePose(reference_time);
+    }
     const mrpt::poses::CPose3D laser_from_reference_base = (-mount) + (-base_at_reference);
+    const Eigen::Matrix3d prefix_rotation = detail::rotationOf(laser_from_reference_base);
+    const Eigen::Vector3d prefix_translation = detail::translationOf(laser_from_reference_base);
 
     knot_offsets_.resize(times.size());
     for (std::size_t k = 0; k < times.size(); ++k) {
       knot_offsets_[k] = nsToSeconds(times[k] - origin);
-      base_poses[k].composeFrom(laser_from_reference_base, base_poses[k]);
+      detail::composeInPlace(prefix_rotation, prefix_translation, knots[k].rotation, knots[k].translation);
     }
     planar_ = rotatesAboutZOnly(mount_rotation_);
-    for (const mrpt::poses::CPose3D& left : lefts)
-      planar_ = planar_ && rotatesAboutZOnly(detail::rotationOf(left));
+    for (const Knot& left : knots)
+      planar_ = planar_ && rotatesAboutZOnly(left.rotation);
     if (screws && !grid && !planar_) {
       grid = true;  // screw segments are planar here: straight segments between grid knots instead
       continue;
@@ -154,17 +157,16 @@ void KnotTrajectory::build(TimeNs origin, double span_begin, double span_end, Ti
   segments_.resize(segment_count);
   for (std::size_t k = 0; k < segment_count; ++k) {
     Segment& segment = segments_[k];
-    const mrpt::poses::CPose3D& left = lefts[k];
-    const mrpt::poses::CPose3D& next = lefts[std::min(k + 1, times.size() - 1)];
+    const Knot& left = knots[k];
+    const Knot& next = knots[std::min(k + 1, times.size() - 1)];
     segment.begin_offset = knot_offsets_[k];
     const double duration = nsToSeconds(times[std::min(k + 1, times.size() - 1)] - times[k]);
     segment.inverse_duration = duration > 0.0 ? 1.0 / duration : 0.0;
-    segment.left_rotation = detail::rotationOf(left);
-    segment.left_translation = detail::translationOf(left);
-    segment.translation_step = detail::translationOf(next) - segment.left_translation;
+    segment.left_rotation = left.rotation;
+    segment.left_translation = left.translation;
+    segment.translation_step = next.translation - segment.left_translation;
     // R_k^T R_k+1 = left_k^T left_k+1: the left factor R_M^T cancels.
-    const Eigen::AngleAxisd step_rotation(
-        Eigen::Matrix3d(segment.left_rotation.transpose() * detail::rotationOf(next)));
+    const Eigen::AngleAxisd step_rotation(Eigen::Matrix3d(segment.left_rotation.transpose() * next.rotation));
     segment.angle = step_rotation.angle();  // in [0, pi]
     segment.axis = segment.angle > 0.0 ? step_rotation.axis() : Eigen::Vector3d::UnitZ();
     const Eigen::Vector3d rotation_vector = segment.angle * segment.axis;

@@ -14,6 +14,12 @@ bool isFinite(const mrpt::poses::CPose3D& pose) {
 
 }  // namespace
 
+void MotionSource::baseTransform(TimeNs time, Eigen::Matrix3d& rotation, Eigen::Vector3d& translation) const {
+  const mrpt::poses::CPose3D pose = basePose(time);
+  rotation = detail::rotationOf(pose);
+  translation = detail::translationOf(pose);
+}
+
 void MotionSource::appendSampleTimes(TimeNs /*begin*/, TimeNs /*end*/, std::vector<TimeNs>& /*times*/) const {
 }
 

@@ -29,4 +29,21 @@ inline mrpt::poses::CPose3D poseOf(const Eigen::Matrix3d& rotation, const Eigen:
   return mrpt::poses::CPose3D::FromRotationAndTranslation(rotation_matrix, xyz);
 }
 
+/// (rotation, translation) = (a_rotation, a_translation) (+) (rotation, translation), bit for bit as MRPT's
+/// CPose3D::composeFrom computes it: each coordinate a_t + a_R(r, 0) b_t + ... left to right, each
+/// rotation entry a_R(r, 0) b_R(0, c) + (a_R(r, 1) b_R(1, c) + a_R(r, 2) b_R(2, c)) (its Eigen product
+/// of row-major matrices; Eigen's of column-major ones rounds differently).
+inline void composeInPlace(const Eigen::Matrix3d& a_rotation, const Eigen::Vector3d& a_translation,
+                           Eigen::Matrix3d& rotation, Eigen::Vector3d& translation) {
+  const Eigen::Vector3d b = translation;
+  for (int r = 0; r < 3; ++r)
+    translation[r] = a_translation[r] + a_rotation(r, 0) * b[0] + a_rotation(r, 1) * b[1] + a_rotation(r, 2) * b[2];
+  const Eigen::Matrix3d b_rotation = rotation;
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c)
+      rotation(r, c) = a_rotation(r, 0) * b_rotation(0, c) +
+                       (a_rotation(r, 1) * b_rotation(1, c) + a_rotation(r, 2) * b_rotation(2, c));
+  }
+}
+
 }  // namespace lidar_deskew::core::detail

@@ -150,6 +150,12 @@ struct LineSums {
   }
 };
 
+/// True when an entry of v is -0 (x + (+/-0) is x for every other x).
+bool hasNegativeZero(const Eigen::Vector3d& v) {
+  return (v.x() == 0.0 && std::signbit(v.x())) || (v.y() == 0.0 && std::signbit(v.y())) ||
+         (v.z() == 0.0 && std::signbit(v.z()));
+}
+
 /// se3Bracket(), here where the fit calls it in its loops.
 inline Twist bracket(const Twist& a, const Twist& b) {
   Twist out;
@@ -248,9 +254,7 @@ bool TwistMotion::gatherSamples(const MotionSource& raw, TimeNs begin, TimeNs en
     Eigen::Matrix3d rotation;
     Eigen::Vector3d translation;
     try {
-      const mrpt::poses::CPose3D pose = raw.basePose(times_[i]);
-      rotation = detail::rotationOf(pose);
-      translation = detail::translationOf(pose);
+      raw.baseTransform(times_[i], rotation, translation);
     } catch (const MotionUnavailable&) {
       return false;
     }
@@ -461,30 +465,38 @@ void TwistMotion::estimateNoise() {
   // reported (estimatedNoise()): the values are kept, and their median taken when asked.
   // The tests, on a residual v: passes(v). The largest value passing, found from a guess by a few
   // steps of one ulp, then tells them by one comparison (any value may be NaN: it passes neither).
-  double threshold[6];
-  std::size_t passing[6] = {};
-  bool by_threshold = true;
-  for (int c = 0; c < 6; ++c) {
-    const double noisy_floor = kNoisyFloor * floor_[c];
-    const double exact_least = noisy_floor * kLeastOfKinds;
-    const auto passes = [&](double v) {
-      const double least = v / kResidualMedians[2];
-      return least <= exact_least && least / kLeastOfKinds <= noisy_floor;
-    };
-    if (!(exact_least >= 0.0 && noisy_floor >= 0.0 && std::isfinite(noisy_floor) && std::isfinite(exact_least))) {
-      by_threshold = false;
-      break;
+  // They depend on the floor only, which most sweeps share with the last (the same typical interval):
+  // then the last sweep's are used.
+  if (!(floor_.array() == threshold_floor_.array()).all()) {
+    threshold_floor_ = floor_;
+    by_threshold_ = true;
+    for (int c = 0; c < 6; ++c) {
+      const double noisy_floor = kNoisyFloor * floor_[c];
+      const double exact_least = noisy_floor * kLeastOfKinds;
+      const auto passes = [&](double v) {
+        const double least = v / kResidualMedians[2];
+        return least <= exact_least && least / kLeastOfKinds <= noisy_floor;
+      };
+      if (!(exact_least >= 0.0 && noisy_floor >= 0.0 && std::isfinite(noisy_floor) &&
+            std::isfinite(exact_least))) {
+        by_threshold_ = false;
+        break;
+      }
+      // passes(0) holds, and passes(v) never turns true again once false as v grows.
+      double v = std::min(exact_least, noisy_floor * kLeastOfKinds) * kResidualMedians[2];
+      int steps = 0;
+      for (; steps < 64 && v < INFINITY && passes(v); ++steps)
+        v = std::nextafter(v, INFINITY);
+      for (; steps < 128 && !passes(v); ++steps)
+        v = std::nextafter(v, -INFINITY);
+      by_threshold_ = by_threshold_ && steps < 128 && passes(v) &&
+                      (v == INFINITY || !passes(std::nextafter(v, INFINITY)));
+      thresholds_[static_cast<std::size_t>(c)] = v;
     }
-    // passes(0) holds, and passes(v) never turns true again once false as v grows.
-    double v = std::min(exact_least, noisy_floor * kLeastOfKinds) * kResidualMedians[2];
-    int steps = 0;
-    for (; steps < 64 && v < INFINITY && passes(v); ++steps)
-      v = std::nextafter(v, INFINITY);
-    for (; steps < 128 && !passes(v); ++steps)
-      v = std::nextafter(v, -INFINITY);
-    by_threshold = by_threshold && steps < 128 && passes(v) && (v == INFINITY || !passes(std::nextafter(v, INFINITY)));
-    threshold[c] = v;
   }
+  const bool by_threshold = by_threshold_;
+  const double* const threshold = thresholds_.data();
+  std::size_t passing[6] = {};
   quartic_residuals_.resize(scored);
   for (std::size_t j = 0; j < scored; ++j) {
     const Twist& residual = sample(j + 5).residual[2];
@@ -938,20 +950,55 @@ const MotionSource& TwistMotion::prepare(const MotionSource& raw, TimeNs begin, 
 }
 
 mrpt::poses::CPose3D TwistMotion::basePose(TimeNs time) const {
+  Eigen::Matrix3d rotation;
+  Eigen::Vector3d translation;
+  baseTransform(time, rotation, translation);
+  return detail::poseOf(rotation, translation);
+}
+
+void TwistMotion::baseTransform(TimeNs time, Eigen::Matrix3d& rotation, Eigen::Vector3d& translation) const {
   if (pieces_.empty() || time < pieces_.front().time || time > end_time_) {
     throw MotionUnavailable(time, "time " + std::to_string(time) + " ns is outside the fitted motion");
   }
-  if (time == end_time_)
-    return detail::poseOf(end_rotation_, end_translation_);
-  const auto after = std::upper_bound(pieces_.begin(), pieces_.end(), time,
-                                      [](TimeNs t, const Piece& piece) { return t < piece.time; });
-  const Piece& piece = *(after - 1);
+  if (time == end_time_) {
+    rotation = end_rotation_;
+    translation = end_translation_;
+    return;
+  }
+  // The last piece starting at or before `time`: the knots ask in time order, so most often the one
+  // asked last or the next.
+  const std::size_t count = pieces_.size();
+  const auto holds = [&](std::size_t k) {
+    return pieces_[k].time <= time && (k + 1 == count || time < pieces_[k + 1].time);
+  };
+  std::size_t index = std::min(piece_hint_, count - 1);
+  if (!holds(index)) {
+    if (index + 1 < count && holds(index + 1)) {
+      ++index;
+    } else {
+      index = static_cast<std::size_t>(std::upper_bound(pieces_.begin(), pieces_.end(), time,
+                                                        [](TimeNs t, const Piece& piece) { return t < piece.time; }) -
+                                       pieces_.begin()) -
+              1;
+    }
+  }
+  piece_hint_ = index;
+  const Piece& piece = pieces_[index];
   const double tau = nsToSeconds(time - piece.time);
   Eigen::Matrix3d step_rotation;
   Eigen::Vector3d step_translation;
+  if (tau == 0.0 && piece.start_twist.allFinite() && piece.slope.allFinite() &&
+      (!piece.curved || piece.curvature.allFinite()) && !hasNegativeZero(piece.translation)) {
+    // At the piece's start (a knot on a sample): Omega(0) is zeros (of either sign), whose exponential
+    // is the identity exactly, its translation zeros, which leave a translation without a -0 as it is.
+    step_rotation.setIdentity();
+    rotation = piece.rotation * step_rotation;
+    translation = piece.translation;
+    return;
+  }
   se3Exp(piece.omega(tau), step_rotation, step_translation);
-  return detail::poseOf(piece.rotation * step_rotation,
-                        piece.translation + piece.rotation * step_translation);
+  rotation = piece.rotation * step_rotation;
+  translation = piece.translation + piece.rotation * step_translation;
 }
 
 double TwistMotion::knotInterval(double requested) const {

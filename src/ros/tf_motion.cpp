@@ -5,6 +5,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include <tf2/LinearMath/Matrix3x3.h>
+
 #include "lidar_deskew/ros/conversions.h"
 
 namespace lidar_deskew::ros_adapter {
@@ -100,10 +102,10 @@ void OneLinkChain::add(const std::string& child, const std::string& parent, core
   newest_ = stamp;
   // As tf2's TransformStorage holds it.
   samples_.push_back(
-      {stamp,
-       {tf2::Quaternion(transform.rotation.x, transform.rotation.y, transform.rotation.z,
-                        transform.rotation.w),
-        tf2::Vector3(transform.translation.x, transform.translation.y, transform.translation.z)}});
+      Sample{stamp,
+             {tf2::Quaternion(transform.rotation.x, transform.rotation.y, transform.rotation.z,
+                              transform.rotation.w),
+              tf2::Vector3(transform.translation.x, transform.translation.y, transform.translation.z)}});
   // tf2's TimeCache::pruneList: samples older than the cache time before the newest.
   while (samples_.front().stamp + cache_ < stamp) {
     samples_.pop_front();
@@ -135,10 +137,18 @@ bool OneLinkChain::answer(core::TimeNs time, geometry_msgs::Transform& out) cons
       if (newer + 1 < size && brackets(newer + 1)) {
         ++newer;
       } else {
-        newer = static_cast<std::size_t>(
-            std::upper_bound(samples_.begin() + 1, samples_.end(), time,
-                             [](core::TimeNs t, const Sample& sample) { return t < sample.stamp; }) -
-            samples_.begin());
+        // The first index in [1, size) whose stamp is after `time` (std::upper_bound's).
+        std::size_t low = 1, count = size - 1;
+        while (count > 0) {
+          const std::size_t half = count / 2;
+          if (time < samples_[low + half].stamp) {
+            count = half;
+          } else {
+            low += half + 1;
+            count -= half + 1;
+          }
+        }
+        newer = low;
       }
     }
     newer_hint_ = newer;
@@ -182,18 +192,33 @@ bool OneLinkChain::answer(core::TimeNs time, geometry_msgs::Transform& out) cons
   return true;
 }
 
-mrpt::poses::CPose3D TfMotionSource::basePose(core::TimeNs time) const {
+geometry_msgs::Transform TfMotionSource::transformAt(core::TimeNs time) const {
   if (time < 0 || time >= (static_cast<core::TimeNs>(1) << 32) * 1'000'000'000) {
     throw core::MotionUnavailable(time, "time outside the range of ROS time");
   }
   if (geometry_msgs::Transform answered; chain_.answer(time, answered))
-    return toPose(answered);
+    return answered;
   ++tf_lookups_;
   try {
-    return toPose(buffer_->lookupTransform(fixed_frame_, base_frame_, toRosTime(time)).transform);
+    return buffer_->lookupTransform(fixed_frame_, base_frame_, toRosTime(time)).transform;
   } catch (const std::exception& error) {  // tf2's, or ros::Duration's "out of dual 32-bit range"
     throw core::MotionUnavailable(time, error.what());
   }
+}
+
+mrpt::poses::CPose3D TfMotionSource::basePose(core::TimeNs time) const { return toPose(transformAt(time)); }
+
+void TfMotionSource::baseTransform(core::TimeNs time, Eigen::Matrix3d& rotation,
+                                   Eigen::Vector3d& translation) const {
+  // As toPose() converts it: tf2's rotation matrix of the quaternion, and the translation, copied.
+  const geometry_msgs::Transform transform = transformAt(time);
+  const tf2::Matrix3x3 basis(tf2::Quaternion(transform.rotation.x, transform.rotation.y, transform.rotation.z,
+                                             transform.rotation.w));
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c)
+      rotation(r, c) = basis[r][c];
+  }
+  translation = Eigen::Vector3d(transform.translation.x, transform.translation.y, transform.translation.z);
 }
 
 void TfMotionSource::appendSampleTimes(core::TimeNs begin, core::TimeNs end,

@@ -5,10 +5,12 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <random>
 
 #include "lidar_deskew/core/motion.h"
 #include "lidar_deskew/core/twist_motion.h"
+#include "../../src/core/pose_eigen.h"
 
 namespace lidar_deskew::core {
 namespace {
@@ -54,6 +56,31 @@ TEST(PoseSamples, ExactAtSamples) {
                   .asEigen()
                   .norm(),
               0.0, 1e-15);
+}
+
+TEST(PoseEigen, ComposesAsMrptsComposeFromBitForBit) {
+  // The knots compose their poses without CPose3D: the same bits as MRPT's composeFrom (Eigen's own
+  // product of column-major matrices differs in about 4 of 5 random cases), large and tiny angles.
+  std::mt19937_64 random(7);
+  std::uniform_real_distribution<double> angle(-3.2, 3.2), position(-100.0, 100.0), tiny(-1e-4, 1e-4);
+  int differing = 0;
+  for (int i = 0; i < 20000; ++i) {
+    const bool small = i % 2 == 0;
+    const CPose3D a = CPose3D::FromXYZYawPitchRoll(position(random), position(random), position(random),
+                                                   angle(random), small ? tiny(random) : angle(random),
+                                                   small ? tiny(random) : angle(random));
+    CPose3D b = CPose3D::FromXYZYawPitchRoll(position(random), position(random), position(random), angle(random),
+                                             small ? tiny(random) : angle(random), angle(random));
+    Eigen::Matrix3d rotation = detail::rotationOf(b);
+    Eigen::Vector3d translation = detail::translationOf(b);
+    detail::composeInPlace(detail::rotationOf(a), detail::translationOf(a), rotation, translation);
+    b.composeFrom(a, b);
+    const Eigen::Matrix3d mrpt_rotation = detail::rotationOf(b);
+    const Eigen::Vector3d mrpt_translation = detail::translationOf(b);
+    differing += std::memcmp(rotation.data(), mrpt_rotation.data(), sizeof(double) * 9) != 0 ||
+                 std::memcmp(translation.data(), mrpt_translation.data(), sizeof(double) * 3) != 0;
+  }
+  EXPECT_EQ(differing, 0);
 }
 
 TEST(PoseSamples, SlerpsAboutAFixedAxisAtConstantRate) {
@@ -187,6 +214,47 @@ TEST(TwistMotion, ExactForConstantTwistWhereTfsLineIsAChord) {
   EXPECT_LT(worst_twist, 1e-9);
   EXPECT_GT(worst_linear, 5e-3);  // v w h^2 / 8 = 7.5 mm off the arc
   EXPECT_EQ(motion.estimatedNoise().norm(), 0.0);
+}
+
+TEST(TwistMotion, AnswersInAnyOrderAsInTimeOrder) {
+  // baseTransform() looks from the piece asked last: answers asked backwards and skipping pieces are
+  // the bits of those asked forwards, and of basePose().
+  Twist xi;
+  xi << 2.0, 0.1, 0.3, 0.2, -0.1, 3.0;
+  const CPose3D start = CPose3D::FromXYZYawPitchRoll(1.0, -2.0, 0.5, 0.4, 0.05, -0.02);
+  PoseSamples samples;
+  for (int k = 0; k <= 20; ++k)
+    samples.add(kT0 + k * kSecond / 10, twist::constantTwist(start, xi, 0.1 * k));
+  TwistMotion motion;
+  const TimeNs begin = kT0 + kSecond + kSecond / 40, end = begin + 5 * kSecond / 8;
+  motion.prepare(samples, begin, end);
+  std::vector<TimeNs> times;
+  for (TimeNs t = begin; t <= end; t += kSecond / 300)
+    times.push_back(t);
+  std::vector<Eigen::Matrix<double, 3, 4>> forwards;
+  for (const TimeNs t : times) {
+    Eigen::Matrix3d rotation;
+    Eigen::Vector3d translation;
+    motion.baseTransform(t, rotation, translation);
+    forwards.emplace_back();
+    forwards.back() << rotation, translation;
+  }
+  std::vector<std::size_t> order;
+  for (std::size_t i = times.size(); i-- > 0;)
+    order.push_back(i);
+  for (std::size_t i = 0; i < times.size(); i += 37)
+    order.push_back(i);
+  for (const std::size_t i : order) {
+    Eigen::Matrix3d rotation;
+    Eigen::Vector3d translation;
+    motion.baseTransform(times[i], rotation, translation);
+    Eigen::Matrix<double, 3, 4> again;
+    again << rotation, translation;
+    EXPECT_EQ(std::memcmp(again.data(), forwards[i].data(), sizeof(double) * 12), 0) << "at " << times[i];
+    const CPose3D pose = motion.basePose(times[i]);
+    again << pose.getRotationMatrix().asEigen(), Eigen::Vector3d(pose.x(), pose.y(), pose.z());
+    EXPECT_EQ(std::memcmp(again.data(), forwards[i].data(), sizeof(double) * 12), 0) << "at " << times[i];
+  }
 }
 
 /// A unicycle whose speed ramps at `acceleration` while turning at `yaw_rate` (which may step at

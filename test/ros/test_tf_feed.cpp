@@ -526,6 +526,20 @@ void expectAsTf2(const TfFeed& feed, core::TimeNs time, const std::string& what)
           << what << " at " << time << " (" << row << ", " << column << "): " << x << " vs tf2's " << y;
     }
   }
+  // The same bits as a rotation matrix and translation (the twist fit reads them so), where the chain
+  // answers (elsewhere it asks tf2, as basePose did: the tests count those lookups).
+  if (!feed.motion().chain().answers(time))
+    return;
+  Eigen::Matrix3d rotation;
+  Eigen::Vector3d translation;
+  feed.motion().baseTransform(time, rotation, translation);
+  for (int row = 0; row < 3; ++row) {
+    for (int column = 0; column < 4; ++column) {
+      const double x = column < 3 ? rotation(row, column) : translation[row], y = b(row, column);
+      ASSERT_EQ(std::memcmp(&x, &y, sizeof x), 0) << what << " at " << time << " (" << row << ", " << column
+                                                  << "): baseTransform's " << x << " vs tf2's " << y;
+    }
+  }
 }
 
 /// parent -> child at t [s]: the drive's arc with a wobbling pitch, roll and height (all of the

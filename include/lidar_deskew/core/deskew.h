@@ -178,7 +178,12 @@ class KnotTrajectory {
   mutable std::vector<double> planar_scratch_;  // correctPlanarScan()'s per-beam values
   mutable std::vector<PlanarRun> planar_runs_;  // and its runs
   std::vector<TimeNs> scratch_times_;
-  std::vector<mrpt::poses::CPose3D> scratch_poses_;
+  /// build()'s base poses at the knots, composed in place into the knots' left factors.
+  struct Knot {
+    Eigen::Matrix3d rotation;
+    Eigen::Vector3d translation;
+  };
+  std::vector<Knot> scratch_knots_;
 };
 
 /// Corrects planar scans and point sets. Keeps caches between calls (beam directions of the last

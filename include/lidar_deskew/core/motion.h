@@ -23,6 +23,10 @@ class MotionSource {
   /// Throws MotionUnavailable when `time` is outside what the source covers. Never extrapolates.
   virtual mrpt::poses::CPose3D basePose(TimeNs time) const = 0;
 
+  /// basePose(time) as its rotation matrix and translation [m], bit for bit, without the CPose3D (the
+  /// twist fit and the knots read them). Throws as basePose. Default: from basePose().
+  virtual void baseTransform(TimeNs time, Eigen::Matrix3d& rotation, Eigen::Vector3d& translation) const;
+
   /// Appends the times [ns] strictly inside (begin, end) at which the source's motion model changes
   /// slope (its own samples). The correction places interpolation knots there too, so piecewise
   /// motion is reproduced exactly. Default: none known.

@@ -5,6 +5,7 @@
 #include <Eigen/Core>
 
 #include <array>
+#include <cmath>
 #include <vector>
 
 #include "lidar_deskew/core/motion.h"
@@ -69,6 +70,7 @@ class TwistMotion final : public MotionSource {
   /// The fitted pose at `time` within the prepared span's sample intervals; throws MotionUnavailable
   /// elsewhere.
   mrpt::poses::CPose3D basePose(TimeNs time) const override;
+  void baseTransform(TimeNs time, Eigen::Matrix3d& rotation, Eigen::Vector3d& translation) const override;
   /// The sample times in (begin, end): the fitted motion's pieces end there.
   void appendSampleTimes(TimeNs begin, TimeNs end, std::vector<TimeNs>& times) const override;
   TimeNs longestGap(TimeNs begin, TimeNs end) const override;
@@ -163,6 +165,7 @@ class TwistMotion final : public MotionSource {
   Twist floor_ = Twist::Zero();
   std::array<bool, 6> noisy_{};  // per component: samples followed, slopes not fitted
   std::vector<Piece> pieces_;
+  mutable std::size_t piece_hint_ = 0;  // baseTransform(): the piece of the last time asked
   Eigen::Matrix3d end_rotation_;  // fitted pose at end_time_, the last piece's end
   Eigen::Vector3d end_translation_;
   TimeNs end_time_ = 0;
@@ -175,6 +178,11 @@ class TwistMotion final : public MotionSource {
   double typical_guess_ = 0.0;
   std::array<double, 18> residual_guesses_{};
   std::array<double, 6> size_guesses_{};
+  /// estimateNoise()'s largest quartic residual per component that passes as exact, and whether those
+  /// tell it, for the floor threshold_floor_ (NaN: none yet).
+  std::array<double, 6> thresholds_{};
+  bool by_threshold_ = false;
+  Twist threshold_floor_ = Twist::Constant(NAN);
   std::vector<Twist> step_, chord_, curve_;  // estimateNoise()'s residuals per stencil
   std::vector<TimeNs> doubled_centres_;       // estimateNoise()'s interval mid times [ns] times two
 };

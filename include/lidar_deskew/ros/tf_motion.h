@@ -7,6 +7,7 @@
 #include <tf2/LinearMath/Vector3.h>
 #include <tf2/buffer_core.h>
 
+#include <algorithm>
 #include <cstddef>
 #include <deque>
 #include <string>
@@ -67,6 +68,36 @@ class OneLinkChain {
     core::TimeNs stamp;
     Link link;
   };
+  /// Samples in a ring buffer (a power-of-two capacity, grown when full): pushed at the back, popped at
+  /// the front, read by index without a deque's block arithmetic.
+  class SampleRing {
+   public:
+    void clear() { first_ = count_ = 0; }
+    bool empty() const { return count_ == 0; }
+    std::size_t size() const { return count_; }
+    const Sample& operator[](std::size_t index) const { return ring_[(first_ + index) & (ring_.size() - 1)]; }
+    const Sample& front() const { return (*this)[0]; }
+    const Sample& back() const { return (*this)[count_ - 1]; }
+    void pop_front() {
+      first_ = (first_ + 1) & (ring_.size() - 1);
+      --count_;
+    }
+    void push_back(const Sample& sample) {
+      if (count_ == ring_.size()) {
+        std::vector<Sample> grown(std::max<std::size_t>(64, 2 * ring_.size()));
+        for (std::size_t i = 0; i < count_; ++i)
+          grown[i] = (*this)[i];
+        ring_.swap(grown);
+        first_ = 0;
+      }
+      ring_[(first_ + count_) & (ring_.size() - 1)] = sample;
+      ++count_;
+    }
+
+   private:
+    std::vector<Sample> ring_;
+    std::size_t first_ = 0, count_ = 0;
+  };
   core::TimeNs cache_;
   bool valid_ = false;
   std::string child_, parent_;
@@ -74,7 +105,7 @@ class OneLinkChain {
   std::vector<Link> above_;  // from parent up
   FixedLink fixed_link_ = FixedLink::kNone;
   std::deque<core::TimeNs> fixed_link_stamps_;  // sorted: those tf2 holds of the fixed frame's link
-  std::deque<Sample> samples_;  // in stamp order: every sample tf2 holds of child from the first on
+  SampleRing samples_;  // in stamp order: every sample tf2 holds of child from the first on
   mutable std::size_t newer_hint_ = 0;  // answer(): the index of the sample after the last time asked
   core::TimeNs newest_ = 0;     // [ns] the newest stamp tf2 took of child (0: none)
   /// True when tf2 holds no sample of child before the first kept (tf2 answers its earliest as it is).
@@ -100,6 +131,7 @@ class TfMotionSource final : public core::MotionSource {
         chain_(retention) {}
 
   mrpt::poses::CPose3D basePose(core::TimeNs time) const override;
+  void baseTransform(core::TimeNs time, Eigen::Matrix3d& rotation, Eigen::Vector3d& translation) const override;
   void appendSampleTimes(core::TimeNs begin, core::TimeNs end,
                          std::vector<core::TimeNs>& times) const override;
   /// True when setSingleLink(true) was said: fixed -> base is one dynamic link, so its stamps are all
@@ -129,6 +161,9 @@ class TfMotionSource final : public core::MotionSource {
   const std::string& baseFrame() const { return base_frame_; }
 
  private:
+  /// fixed -> base at `time` as tf2 answers it (the one-link chain where it can).
+  geometry_msgs::Transform transformAt(core::TimeNs time) const;
+
   const tf2::BufferCore* buffer_;
   std::string fixed_frame_;
   std::string base_frame_;
