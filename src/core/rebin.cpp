@@ -916,7 +916,7 @@ LIDAR_DESKEW_AVX2_CLONES void ScanRebinner::traceContours(const Points& points, 
       return crossSurface(j, q, points);
     const double ex = x[q] - x[j], ey = y[q] - y[j];
     const double numerator = x[j] * ey - y[j] * ex;
-    for (std::int32_t ray = first + 1; ray <= first + step; ++ray) {
+    const auto crossRay = [&](std::int32_t ray) {
       const double ray_x = ray_cos[ray], ray_y = ray_sin[ray];
       const double range = numerator / (ray_x * ey - ray_y * ex);
       if (range > 0.0 && range < best_range[ray]) {
@@ -926,7 +926,12 @@ LIDAR_DESKEW_AVX2_CLONES void ScanRebinner::traceContours(const Points& points, 
                                             points[q].intensity);
         }
       }
-    }
+    };
+    // (at most two rays, written out: as a loop GCC vectorises it, at a cost that 0 to 2 rays never repay)
+    if (step > 0)
+      crossRay(first + 1);
+    if (step > 1)
+      crossRay(first + 2);
     return true;
   };
   // Links begin .. end - 1, each with the one ray between its points' positions, those rays consecutive: a
