@@ -220,7 +220,7 @@ class ScanRebinner {
   std::vector<unsigned char> candidate_;   // j's residual estimates the noise (both links joined); padded
   std::size_t candidate_count_ = 0;        // to whole words of 8 with 0
   std::vector<Link> link_;                   // what joins j and its next
-  std::vector<unsigned char> general_;       // link j needs more than crossOneRayEach (traceContours())
+  std::vector<unsigned char> run_kind_;      // what a run of surfaces does with link j (traceContours())
   std::vector<double> corner_x_, corner_y_;  // [m] the corner of a kCorner link
   std::vector<double> noise_sample_;         // [m] scratch for the noise estimate
   std::vector<std::size_t> ends_;            // points where a contour ends (or a lone return)
