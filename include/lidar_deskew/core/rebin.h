@@ -94,7 +94,7 @@ class ScanRebinner {
 
   // The steps of rebin(), in order. The common case (points on surfaces, one ray between neighbours) runs
   // over plain arrays in loops of arithmetic and bytes that the compiler vectorises (decisions as masks,
-  // runs of one-ray links found by memchr on a byte mask; on x86-64 the points read as SSE2 pairs, and
+  // runs of one-ray links found 8 link bytes at a time; on x86-64 the points read as SSE2 pairs, and
   // with GCC an AVX2 variant of each step, without FMA: the same rounding); bearings (atan2) only for the
   // rare links (corners, steps, grazing walls) and contour ends. Outputs in double (float's rounding moved
   // ranges across the 10 mm mark of the scan metrics); float, in 32-bit lanes, only for decisions it makes
