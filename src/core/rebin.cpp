@@ -958,8 +958,8 @@ LIDAR_DESKEW_AVX2_CLONES void ScanRebinner::traceContours(const Points& points, 
   // near a ray, crossRaysBetween() (the common cases of crossSurfaceLink()); kOtherSurface: the rest,
   // crossSurfaceLink(), and always the last point's; kNotSurface: the run ends.
   constexpr unsigned char kOneRay = 0, kNoRay = 1, kTwoRays = 2, kOtherSurface = 3, kNotSurface = 4;
-  static_assert(kNotSurface - 1 - 3 == kOneRay && kNotSurface - 1 - 2 == kNoRay && kNotSurface - 1 - 1 == kTwoRays &&
-                    kNotSurface - 1 == kOtherSurface,
+  static_assert(kNotSurface - 1 - 3 == kOneRay && kNotSurface - 1 - 2 == kNoRay &&
+                    kNotSurface - 1 - 1 == kTwoRays && kNotSurface - 1 == kOtherSurface,
                 "run_kind's arithmetic below");
   unsigned char* const run_kind = run_kind_.data();
   if (running && n > 0) {
@@ -968,7 +968,8 @@ LIDAR_DESKEW_AVX2_CLONES void ScanRebinner::traceContours(const Points& points, 
       const std::int32_t step = position[j + 1] - position[j];
       const unsigned char surface = link[j] == Link::kSurface;
       const unsigned char clear = (near_ray[j] | near_ray[j + 1] | (position[j] < 0)) ^ 1u;
-      const unsigned char one = step == 1, none = (step == 0) & clear, two = (step == 2) & two_rays_clear & clear;
+      const unsigned char one = step == 1, none = (step == 0) & clear;
+      const unsigned char two = (step == 2) & two_rays_clear & clear;
       run_kind[j] = static_cast<unsigned char>(kNotSurface - surface * (1u + 3u * one + 2u * none + two));
     }
     run_kind[n - 1] = link[n - 1] == Link::kSurface ? kOtherSurface : kNotSurface;
