@@ -967,7 +967,8 @@ LIDAR_DESKEW_AVX2_CLONES void ScanRebinner::traceContours(const Points& points, 
     for (std::size_t j = 0; j + 1 < n; ++j) {
       const std::int32_t step = position[j + 1] - position[j];
       const unsigned char surface = link[j] == Link::kSurface;
-      const unsigned char clear = (near_ray[j] | near_ray[j + 1] | (position[j] < 0)) ^ 1u;
+      // (a point without a position is near a ray: locatePoints())
+      const unsigned char clear = (near_ray[j] | near_ray[j + 1]) ^ 1u;
       const unsigned char one = step == 1, none = (step == 0) & clear;
       const unsigned char two = (step == 2) & two_rays_clear & clear;
       run_kind[j] = static_cast<unsigned char>(kNotSurface - surface * (1u + 3u * one + 2u * none + two));
