@@ -601,7 +601,7 @@ LIDAR_DESKEW_AVX2_CLONES void ScanRebinner::readPoints(const Points& points, con
   near_ray_.resize(n);
   has_next_.resize(n);
   joined_.resize(n);
-  general_.resize(n);
+  run_kind_.resize(n + 8);  // (nextSpecial() reads whole words)
   join_test_.resize(n);
   line_.resize(n);
   // whole words of 8 bytes for classifyLinks(): the bytes past the last point stay 0
@@ -918,18 +918,12 @@ LIDAR_DESKEW_AVX2_CLONES void ScanRebinner::traceContours(const Points& points, 
   float* const best_intensity = best_intensity_.data();
   const unsigned char* const near_ray = near_ray_.data();
   const std::int32_t quarter = static_cast<std::int32_t>(ray_count_ / 4);
-  const auto crossSurfaceLink = [&](std::size_t j, std::size_t q) {
-    // The rays between the two positions meet the segment: one ray (a point on its position's ray or the
-    // next meets it in its link on the other side, or offerOwnRay() there), or none or two where neither
-    // point is near a ray (as crossSurface() finds, which takes the rest).
-    const std::int32_t first = position[j], step = position[q] - first;
-    const bool clear =
-        step == 1 || ((step == 0) | (step == 2 && step <= quarter)) & !near_ray[j] & !near_ray[q];
-    if (!(first >= 0 && clear))
-      return crossSurface(j, q, points);
+  // Link j -> q, a surface whose points lie between rays `first` and first + 1 and between first + step and
+  // first + step + 1 (neither on them): the rays between, first + 1 .. first + step (step 0 to 2), meet it.
+  const auto crossRaysBetween = [&](std::size_t j, std::size_t q, std::int32_t first, std::int32_t step) {
     const double ex = x[q] - x[j], ey = y[q] - y[j];
     const double numerator = x[j] * ey - y[j] * ex;
-    for (std::int32_t ray = first + 1; ray <= first + step; ++ray) {
+    const auto crossRay = [&](std::int32_t ray) {
       const double ray_x = ray_cos[ray], ray_y = ray_sin[ray];
       const double range = numerator / (ray_x * ey - ray_y * ex);
       if (range > 0.0 && range < best_range[ray]) {
@@ -939,7 +933,23 @@ LIDAR_DESKEW_AVX2_CLONES void ScanRebinner::traceContours(const Points& points, 
                                             points[q].intensity);
         }
       }
-    }
+    };
+    // (at most two rays, written out: as a loop GCC vectorises it, at a cost that 0 to 2 rays never repay)
+    if (step > 0)
+      crossRay(first + 1);
+    if (step > 1)
+      crossRay(first + 2);
+  };
+  const auto crossSurfaceLink = [&](std::size_t j, std::size_t q) {
+    // The rays between the two positions meet the segment: one ray (a point on its position's ray or the
+    // next meets it in its link on the other side, or offerOwnRay() there), or none or two where neither
+    // point is near a ray (as crossSurface() finds, which takes the rest).
+    const std::int32_t first = position[j], step = position[q] - first;
+    const bool clear =
+        step == 1 || ((step == 0) | (step == 2 && step <= quarter)) & !near_ray[j] & !near_ray[q];
+    if (!(first >= 0 && clear))
+      return crossSurface(j, q, points);
+    crossRaysBetween(j, q, first, step);
     return true;
   };
   // Links begin .. end - 1, each with the one ray between its points' positions, those rays consecutive: a
@@ -954,39 +964,75 @@ LIDAR_DESKEW_AVX2_CLONES void ScanRebinner::traceContours(const Points& points, 
                            best_range + first_ray);
     }
   };
-  // 1 where link j is not a surface whose points' positions are consecutive rays (positions are rays or
-  // kNoPosition: one more than the last point's is a ray), and for the last point: runs of 0 are the links
-  // crossOneRayEach() takes, skipped by memchr.
-  unsigned char* const general = general_.data();
-  for (std::size_t j = 0; j + 1 < n; ++j)
-    general[j] = (link[j] != Link::kSurface) | (position[j + 1] != position[j] + 1);
-  if (n > 0)
-    general[n - 1] = 1;
+  // What a run of surfaces does with link j, by running bin positions (positions are rays or kNoPosition:
+  // one more than the last point's is a ray), in a loop of arithmetic on bytes (vectorised):
+  // kOneRay: its points' positions are consecutive rays, runs of them crossOneRayEach() takes (found by
+  // nextSpecial()); kNoRay, kTwoRays: its points lie between the same two rays or two rays apart, neither
+  // near a ray, crossRaysBetween() (the common cases of crossSurfaceLink()); kOtherSurface: the rest,
+  // crossSurfaceLink(), and always the last point's; kNotSurface: the run ends.
+  constexpr unsigned char kOneRay = 0, kNoRay = 1, kTwoRays = 2, kOtherSurface = 3, kNotSurface = 4;
+  static_assert(kNotSurface - 1 - 3 == kOneRay && kNotSurface - 1 - 2 == kNoRay &&
+                    kNotSurface - 1 - 1 == kTwoRays && kNotSurface - 1 == kOtherSurface,
+                "run_kind's arithmetic below");
+  unsigned char* const run_kind = run_kind_.data();
+  if (running && n > 0) {
+    const unsigned char two_rays_clear = 2 <= quarter;
+    for (std::size_t j = 0; j + 1 < n; ++j) {
+      const std::int32_t step = position[j + 1] - position[j];
+      const unsigned char surface = link[j] == Link::kSurface;
+      // (a point without a position is near a ray: locatePoints())
+      const unsigned char clear = (near_ray[j] | near_ray[j + 1]) ^ 1u;
+      const unsigned char one = step == 1, none = (step == 0) & clear;
+      const unsigned char two = (step == 2) & two_rays_clear & clear;
+      run_kind[j] = static_cast<unsigned char>(kNotSurface - surface * (1u + 3u * one + 2u * none + two));
+    }
+    run_kind[n - 1] = link[n - 1] == Link::kSurface ? kOtherSurface : kNotSurface;
+  }
+  // The first link from `from` that is not kOneRay (there is one: the last point's), by words of 8 bytes
+  // (run_kind_ is padded to whole words past the last point): runs are short, a library call costs more.
+  const auto nextSpecial = [run_kind](std::size_t from) {
+#if defined(__GNUC__) && __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__
+    for (;; from += 8) {
+      std::uint64_t word;
+      std::memcpy(&word, run_kind + from, sizeof word);
+      if (word != 0)
+        return from + static_cast<std::size_t>(__builtin_ctzll(word) >> 3);  // its first non-zero byte
+    }
+#else
+    while (run_kind[from] == kOneRay)
+      ++from;
+    return from;
+#endif
+  };
   for (std::size_t j = 0; j < n; ++j) {
     Link kind = link[j];
     if (kind == Link::kSurface && running) {
-      // A run of surfaces, in one loop: each by running bin positions (the common case inline), by bearing
+      // A run of surfaces, in one loop: each by running bin positions (the common cases inline), by bearing
       // where they cannot.
       if (j > 0 && !left_continues)
         ends_.push_back(j);
       left_continues = true;
       for (;; ++j) {
         // links j .. last - 1 have one ray each, consecutive
-        const std::size_t last = static_cast<std::size_t>(
-            static_cast<const unsigned char*>(std::memchr(general + j, 1, n - j)) - general);
+        const std::size_t last = nextSpecial(j);
         if (last > j)  // (a run of none: nothing to set up)
           crossOneRayEach(j, last);
-        if (last > j && link[last] != Link::kSurface) {
-          j = last - 1;
+        j = last;
+        const unsigned char run = run_kind[j];
+        if (run == kNotSurface) {  // (not the run's first link: that is a surface)
+          --j;
           break;
         }
-        j = last;
-        const std::size_t q = j + 1 == n ? 0 : j + 1;
-        if (!crossSurfaceLink(j, q)) {
-          crossSegmentByBearing(x[j], y[j], bearingOf(j), points[j].intensity, x[q], y[q], bearingOf(q),
-                                points[q].intensity, sweep);
+        if (run == kTwoRays) {
+          crossRaysBetween(j, j + 1, position[j], 2);
+        } else if (run == kOtherSurface) {
+          const std::size_t q = j + 1 == n ? 0 : j + 1;
+          if (!crossSurfaceLink(j, q)) {
+            crossSegmentByBearing(x[j], y[j], bearingOf(j), points[j].intensity, x[q], y[q], bearingOf(q),
+                                  points[q].intensity, sweep);
+          }
         }
-        if (j + 1 == n || link[j + 1] != Link::kSurface)
+        if (j + 1 == n)
           break;
       }
       continue;

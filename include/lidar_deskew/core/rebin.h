@@ -95,7 +95,7 @@ class ScanRebinner {
 
   // The steps of rebin(), in order. The common case (points on surfaces, one ray between neighbours) runs
   // over plain arrays in loops of arithmetic and bytes that the compiler vectorises (decisions as masks,
-  // runs of one-ray links found by memchr on a byte mask; on x86-64 the points read as SSE2 pairs, and
+  // runs of one-ray links found 8 link bytes at a time; on x86-64 the points read as SSE2 pairs, and
   // with GCC an AVX2 variant of each step, without FMA: the same rounding); bearings (atan2) only for the
   // rare links (corners, steps, grazing walls) and contour ends. Outputs in double (float's rounding moved
   // ranges across the 10 mm mark of the scan metrics); float, in 32-bit lanes, only for decisions it makes
@@ -221,7 +221,7 @@ class ScanRebinner {
   std::vector<unsigned char> candidate_;   // j's residual estimates the noise (both links joined); padded
   std::size_t candidate_count_ = 0;        // to whole words of 8 with 0
   std::vector<Link> link_;                   // what joins j and its next
-  std::vector<unsigned char> general_;       // link j needs more than crossOneRayEach (traceContours())
+  std::vector<unsigned char> run_kind_;      // what a run of surfaces does with link j (traceContours())
   std::vector<double> corner_x_, corner_y_;  // [m] the corner of a kCorner link
   std::vector<double> noise_sample_;         // [m] scratch for the noise estimate
   std::vector<double> noise_select_;         // scratch for its median
