@@ -14,6 +14,8 @@ ln -sfn "$repo" "$ws/src/lidar_deskew"
 cd "$ws"
 jobs=${LIDAR_DESKEW_JOBS:-2}
 source "$repo/scripts/compiler_cache.sh"
-catkin_make -j"$jobs" -DCMAKE_BUILD_TYPE=Release "${compiler_cache_args[@]}" "$@"
+args=(-DCMAKE_BUILD_TYPE=Release "${compiler_cache_args[@]}" "$@")
+catkin_make -j"$jobs" "${args[@]}"
 rm -rf "$ws/install"
-catkin_make -j"$jobs" install "$@" >/dev/null
+# The same arguments: catkin_make runs CMake again whenever they differ from its last run's.
+catkin_make -j"$jobs" install "${args[@]}" >/dev/null
