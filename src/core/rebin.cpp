@@ -7,18 +7,7 @@
 
 #include "fast_atan2.h"
 #include "kth_smallest.h"
-
-#if defined(__SSE2__)
-#include <emmintrin.h>
-#endif
-
-// The per-point loops also in an AVX2 variant, chosen when the library loads (GCC on x86-64; its "avx2" has
-// no FMA, which would round differently).
-#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__)
-#define LIDAR_DESKEW_AVX2_CLONES __attribute__((target_clones("avx2", "default")))
-#else
-#define LIDAR_DESKEW_AVX2_CLONES
-#endif
+#include "simd.h"
 
 namespace lidar_deskew::core {
 namespace {

@@ -1,0 +1,15 @@
+// What the core's hot loops use beyond plain C++: SSE2 intrinsics where the target has them (all of
+// x86-64), and LIDAR_DESKEW_AVX2_CLONES, which also builds a function in an AVX2 variant chosen when the
+// library loads (GCC on x86-64; its "avx2" has no FMA, which would round differently: both variants
+// give the same bits).
+#pragma once
+
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
+#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__)
+#define LIDAR_DESKEW_AVX2_CLONES __attribute__((target_clones("avx2", "default")))
+#else
+#define LIDAR_DESKEW_AVX2_CLONES
+#endif
