@@ -173,6 +173,19 @@ double positionError(const CPose3D& a, const CPose3D& b) {
   return std::hypot(std::hypot(a.x() - b.x(), a.y() - b.y()), a.z() - b.z());
 }
 
+/// A climbing, turning, rolling motion of constant twist, sampled at 10 Hz for 2 s from kT0.
+struct ClimbingTurn {
+  Twist xi = (Twist() << 2.0, 0.1, 0.3, 0.2, -0.1, 3.0).finished();
+  CPose3D start = CPose3D::FromXYZYawPitchRoll(1.0, -2.0, 0.5, 0.4, 0.05, -0.02);
+  PoseSamples samples;
+
+  ClimbingTurn() {
+    for (int k = 0; k <= 20; ++k)
+      samples.add(kT0 + k * kSecond / 10, constantTwist(start, xi, 0.1 * k));
+  }
+  CPose3D truth(TimeNs t) const { return constantTwist(start, xi, nsToSeconds(t - kT0)); }
+};
+
 }  // namespace twist
 
 TEST(TwistMotion, ExponentialIsTheArcAndLogInvertsIt) {
@@ -195,19 +208,14 @@ TEST(TwistMotion, ExponentialIsTheArcAndLogInvertsIt) {
 }
 
 TEST(TwistMotion, ExactForConstantTwistWhereTfsLineIsAChord) {
-  // A climbing, turning, rolling motion with samples at 10 Hz.
-  Twist xi;
-  xi << 2.0, 0.1, 0.3, 0.2, -0.1, 3.0;
-  const CPose3D start = CPose3D::FromXYZYawPitchRoll(1.0, -2.0, 0.5, 0.4, 0.05, -0.02);
-  PoseSamples samples;
-  for (int k = 0; k <= 20; ++k)
-    samples.add(kT0 + k * kSecond / 10, twist::constantTwist(start, xi, 0.1 * k));
+  const twist::ClimbingTurn turn;
+  const PoseSamples& samples = turn.samples;
   TwistMotion motion;
   const TimeNs begin = kT0 + kSecond + kSecond / 40, end = begin + kSecond / 8;
   ASSERT_EQ(&motion.prepare(samples, begin, end), &motion);
   double worst_twist = 0.0, worst_linear = 0.0;
   for (TimeNs t = begin; t <= end; t += kSecond / 200) {
-    const CPose3D truth = twist::constantTwist(start, xi, nsToSeconds(t - kT0));
+    const CPose3D truth = turn.truth(t);
     worst_twist = std::max(worst_twist, twist::positionError(motion.basePose(t), truth));
     worst_linear = std::max(worst_linear, twist::positionError(samples.basePose(t), truth));
   }
@@ -219,15 +227,10 @@ TEST(TwistMotion, ExactForConstantTwistWhereTfsLineIsAChord) {
 TEST(TwistMotion, AnswersInAnyOrderAsInTimeOrder) {
   // baseTransform() looks from the piece asked last: answers asked backwards and skipping pieces are
   // the bits of those asked forwards, and of basePose().
-  Twist xi;
-  xi << 2.0, 0.1, 0.3, 0.2, -0.1, 3.0;
-  const CPose3D start = CPose3D::FromXYZYawPitchRoll(1.0, -2.0, 0.5, 0.4, 0.05, -0.02);
-  PoseSamples samples;
-  for (int k = 0; k <= 20; ++k)
-    samples.add(kT0 + k * kSecond / 10, twist::constantTwist(start, xi, 0.1 * k));
+  const twist::ClimbingTurn turn;
   TwistMotion motion;
   const TimeNs begin = kT0 + kSecond + kSecond / 40, end = begin + 5 * kSecond / 8;
-  motion.prepare(samples, begin, end);
+  motion.prepare(turn.samples, begin, end);
   std::vector<TimeNs> times;
   for (TimeNs t = begin; t <= end; t += kSecond / 300)
     times.push_back(t);
