@@ -17,6 +17,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <map>
+#include <optional>
 #include <string>
 
 #include "lidar_deskew/core/deskew.h"
@@ -164,12 +165,19 @@ void runScanPath(benchmark::State& state, const std::string& sensor) {
   for (const sensor_msgs::LaserScan& message : rec.messages)
     messages.push_back(boost::make_shared<sensor_msgs::LaserScan>(message));
   ros_adapter::ScanProcessor processor{ros_adapter::DeskewParams()};
+  std::string error;
   std::size_t k = 0;
   for (auto _ : state) {
     const ros_adapter::PreparedScan prepared = processor.prepare(messages[k]);
-    const mrpt::poses::CPose3D mount =
-        ros_adapter::toPose(rec.buffer.lookupTransform("base_link", "laser", ros::Time(0)).transform);
-    const ros_adapter::DeskewedOutputs outputs = processor.correct(prepared, mount, rec.motion);
+    // The mount as ScanPipeline looks it up: TfFeed's histories of /tf_static (tf2 only where they do
+    // not connect the frames).
+    const std::optional<mrpt::poses::CPose3D> mount =
+        rec.tf.mount(messages[k]->header.frame_id, prepared.latest(), error);
+    if (!mount) {
+      state.SkipWithError(("no mount: " + error).c_str());
+      break;
+    }
+    const ros_adapter::DeskewedOutputs outputs = processor.correct(prepared, *mount, rec.motion);
     benchmark::DoNotOptimize(outputs.scan->ranges.data());
     benchmark::DoNotOptimize(outputs.cloud->points.data());
     k = (k + 1) % messages.size();

@@ -13,7 +13,7 @@ bench=$(bash "$repo/bench/build.sh" bench_tf)
 out=$(mktemp -d)
 trap 'rm -rf "$out"' EXIT
 # Counted: ScanProcessor's prepare and correct (the message checked, corrected, re-binned, the outputs
-# built), not the benchmark's setup nor its lookup of the mount in tf (one tf2 lookup, about 1,700).
+# built), not the benchmark's setup nor its look-up of the mount (TfFeed::mount, as the node's).
 LIDAR_DESKEW_BENCH_NO_ACCURACY=1 LIDAR_DESKEW_BENCH_ITERATIONS=$iterations \
   valgrind --tool=callgrind --callgrind-out-file="$out/callgrind.out" \
   --toggle-collect='*ScanProcessor::prepare*' --toggle-collect='*ScanProcessor::correct*' \
