@@ -2,6 +2,6 @@
 #include "lidar_deskew/node/run_node.h"
 
 int main(int argc, char** argv) {
-  return lidar_deskew::node::runNode<lidar_deskew::node::PointCloudDeskewNode>(argc, argv,
-                                                                               "lidar_deskew_cloud");
+  return lidar_deskew::node::runLiveNode(lidar_deskew::node::LiveInput::kClouds, argc, argv,
+                                         "lidar_deskew_cloud");
 }

@@ -2,5 +2,5 @@
 #include "lidar_deskew/node/run_node.h"
 
 int main(int argc, char** argv) {
-  return lidar_deskew::node::runNode<lidar_deskew::node::LaserScanDeskewNode>(argc, argv, "lidar_deskew");
+  return lidar_deskew::node::runLiveNode(lidar_deskew::node::LiveInput::kScans, argc, argv, "lidar_deskew");
 }

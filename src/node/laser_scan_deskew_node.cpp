@@ -12,6 +12,7 @@
 #include <type_traits>
 
 #include "lidar_deskew/node/config_params.h"
+#include "lidar_deskew/node/run_node.h"
 #include "lidar_deskew/ros/conversions.h"
 
 namespace lidar_deskew::node {
@@ -621,5 +622,39 @@ void DeskewNode<Processor>::produceDiagnostics(diagnostic_updater::DiagnosticSta
 
 template class DeskewNode<ros_adapter::ScanProcessor>;
 template class DeskewNode<ros_adapter::CloudProcessor>;
+
+namespace {
+
+template <class Processor>
+class LiveNodeOf : public LiveNode {
+ public:
+  LiveNodeOf(const ros::NodeHandle& nh, const ros::NodeHandle& private_nh, const std::string& name)
+      : node_(nh, private_nh, name) {}
+
+ private:
+  DeskewNode<Processor> node_;
+};
+
+}  // namespace
+
+std::unique_ptr<LiveNode> startLiveNode(LiveInput input, const ros::NodeHandle& nh,
+                                        const ros::NodeHandle& private_nh, const std::string& name) {
+  if (input == LiveInput::kClouds)
+    return std::make_unique<LiveNodeOf<ros_adapter::CloudProcessor>>(nh, private_nh, name);
+  return std::make_unique<LiveNodeOf<ros_adapter::ScanProcessor>>(nh, private_nh, name);
+}
+
+int runLiveNode(LiveInput input, int argc, char** argv, const char* default_name) {
+  ros::init(argc, argv, default_name);
+  ros::NodeHandle nh, private_nh("~");
+  try {
+    const std::unique_ptr<LiveNode> node = startLiveNode(input, nh, private_nh, ros::this_node::getName());
+    ros::spin();
+  } catch (const core::InvalidInput& error) {
+    ROS_FATAL("%s: invalid parameter %s", ros::this_node::getName().c_str(), error.what());
+    return 1;
+  }
+  return 0;
+}
 
 }  // namespace lidar_deskew::node

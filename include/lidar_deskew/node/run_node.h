@@ -1,24 +1,33 @@
-// The plain nodes' main: one DeskewNode, spun until shutdown; an invalid parameter ends it with 1.
+// The live deskew's entry points for the plain nodes and the nodelets, declared without the node's own
+// headers (ROS, PCL, diagnostics, the pipeline): their sources compile against this alone, and
+// DeskewNode is built once, in the node library.
 #pragma once
 
-#include <ros/ros.h>
+#include <memory>
+#include <string>
 
-#include "lidar_deskew/node/laser_scan_deskew_node.h"
+namespace ros {
+class NodeHandle;
+}
 
 namespace lidar_deskew::node {
 
-template <class Node>
-int runNode(int argc, char** argv, const char* default_name) {
-  ros::init(argc, argv, default_name);
-  ros::NodeHandle nh, private_nh("~");
-  try {
-    Node node(nh, private_nh, ros::this_node::getName());
-    ros::spin();
-  } catch (const core::InvalidInput& error) {
-    ROS_FATAL("%s: invalid parameter %s", ros::this_node::getName().c_str(), error.what());
-    return 1;
-  }
-  return 0;
-}
+/// Which DeskewNode: LaserScans (DeskewNode<ScanProcessor>) or PointCloud2s (<CloudProcessor>).
+enum class LiveInput { kScans, kClouds };
+
+/// A running DeskewNode of either input, owned by a nodelet; deleting it stops the node.
+class LiveNode {
+ public:
+  virtual ~LiveNode() = default;
+};
+
+/// Starts the live deskew of `input` (DeskewNode's constructor: throws core::InvalidInput naming a bad
+/// parameter).
+std::unique_ptr<LiveNode> startLiveNode(LiveInput input, const ros::NodeHandle& nh,
+                                        const ros::NodeHandle& private_nh, const std::string& name);
+
+/// The plain nodes' main: ros::init (node name `default_name` unless remapped), one node spun until
+/// shutdown; 0, or 1 when a parameter is invalid (logged).
+int runLiveNode(LiveInput input, int argc, char** argv, const char* default_name);
 
 }  // namespace lidar_deskew::node
