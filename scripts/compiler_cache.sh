@@ -5,8 +5,8 @@
 # devel space <dir>/devel): ccache makes paths relative to the repo (after resolving links), so the later
 # builds find the workspace's objects (it checks the source, every header and the flags; a hit is the
 # object the compiler made for the same input).
-# Needs $repo (the repo's physical path). Sets compiler_cache_args (CMake arguments; without ccache they
-# clear the launcher).
+# Needs $repo (the repo's physical path). Sets compiler_cache_args (CMake arguments: the compiler launcher,
+# cleared without ccache; the linker).
 # LIDAR_DESKEW_CCACHE=0 turns it off.
 compiler_cache_args=()
 if [ "${LIDAR_DESKEW_CCACHE:-1}" != 0 ] && command -v ccache >/dev/null; then
@@ -21,4 +21,10 @@ if [ "${LIDAR_DESKEW_CCACHE:-1}" != 0 ] && command -v ccache >/dev/null; then
   compiler_cache_args=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache -DCMAKE_C_COMPILER_LAUNCHER=ccache)
 else
   compiler_cache_args=(-DCMAKE_CXX_COMPILER_LAUNCHER= -DCMAKE_C_COMPILER_LAUNCHER=)  # clears a cached one
+fi
+# LLVM's linker where installed (scripts/install_deps.sh installs it): a third of GNU ld's CPU per link,
+# and the suite links some 70 libraries and executables on a fresh machine.
+if command -v ld.lld >/dev/null; then
+  compiler_cache_args+=(-DCMAKE_EXE_LINKER_FLAGS=-fuse-ld=lld -DCMAKE_SHARED_LINKER_FLAGS=-fuse-ld=lld
+    -DCMAKE_MODULE_LINKER_FLAGS=-fuse-ld=lld)
 fi

@@ -8,6 +8,7 @@ PACKAGES=(
   # toolchain and test tools
   cmake g++ make git libgtest-dev libbenchmark-dev bc
   ccache  # shared by the workspace's and the Debian package's builds (scripts/compiler_cache.sh)
+  lld  # the linker of the build scripts (scripts/compiler_cache.sh)
   # the Debian package: dpkg-shlibdeps, dpkg-architecture; its check (debian_package test)
   dpkg-dev lintian
   # fuzzing: clang with libFuzzer, ASan and UBSan
