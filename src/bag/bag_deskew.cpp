@@ -1,5 +1,6 @@
 #include "lidar_deskew/bag/bag_deskew.h"
 
+#include <pcl_ros/point_cloud.h>  // DeskewedCloud written to bags
 #include <rosbag/view.h>
 #include <tf2_msgs/TFMessage.h>
 #include <unistd.h>

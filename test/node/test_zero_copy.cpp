@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <nodelet/loader.h>
+#include <pcl_ros/point_cloud.h>  // the cloud subscribed to as PCL
 #include <set>
 
 #include "lidar_deskew/node/laser_scan_deskew_node.h"

@@ -1,6 +1,7 @@
 // ScanProcessor, the one code path of the node and deskew_bag: message checks and the messages it builds.
 #include <gtest/gtest.h>
 #include <pcl_conversions/pcl_conversions.h>
+#include <pcl_ros/point_cloud.h>
 #include <sensor_msgs/point_cloud2_iterator.h>
 
 #include "lidar_deskew/ros/conversions.h"

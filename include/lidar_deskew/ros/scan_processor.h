@@ -2,7 +2,6 @@
 #pragma once
 
 #include <pcl/point_cloud.h>
-#include <pcl_ros/point_cloud.h>
 #include <sensor_msgs/LaserScan.h>
 
 #include "lidar_deskew/core/deskew.h"
