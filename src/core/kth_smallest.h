@@ -23,6 +23,51 @@ double extremeOf(std::size_t n, std::size_t k, const Read& read) {
   return extreme;
 }
 
+/// How far from either end of its values k may lie for nearEnd() to finish the selection in one pass.
+constexpr std::size_t kNearEnd = 3;
+
+/// The M-th smallest (kLargest: the M-th largest, from 0) of read(0) .. read(n - 1), n > M: the M + 1
+/// smallest (largest) so far kept in order, each value passed down through them by std::min and
+/// std::max (no branches).
+template <std::size_t M, bool kLargest, typename Read>
+double orderedNearEnd(std::size_t n, const Read& read) {
+  double kept[M + 1];
+  for (double& value : kept)
+    value = kLargest ? -INFINITY : INFINITY;
+  for (std::size_t i = 0; i < n; ++i) {
+    double value = read(i);
+    for (std::size_t j = 0; j <= M; ++j) {
+      const double held = kept[j];
+      kept[j] = kLargest ? std::max(held, value) : std::min(held, value);
+      value = kLargest ? std::min(held, value) : std::max(held, value);
+    }
+  }
+  return kept[M];
+}
+
+/// The m-th smallest (kLargest: largest, from 0) of read(0) .. read(n - 1), m <= kNearEnd < n.
+template <bool kLargest, typename Read>
+double nearEndOf(std::size_t n, std::size_t m, const Read& read) {
+  static_assert(kNearEnd == 3, "the cases below");
+  switch (m) {
+    case 0:
+      return extremeOf(n, kLargest ? 1 : 0, read);  // (1: the largest)
+    case 1:
+      return orderedNearEnd<1, kLargest>(n, read);
+    case 2:
+      return orderedNearEnd<2, kLargest>(n, read);
+    default:
+      return orderedNearEnd<3, kLargest>(n, read);
+  }
+}
+
+/// The k-th smallest of read(0) .. read(n - 1) where k lies within kNearEnd of either end, in one pass.
+template <typename Read>
+double nearEnd(std::size_t n, std::size_t k, const Read& read) {
+  const std::size_t from_top = n - 1 - k;
+  return k <= from_top ? nearEndOf<false>(n, k, read) : nearEndOf<true>(n, from_top, read);
+}
+
 /// Smaller values of read(0) .. read(n - 1) than `pivot` to to[0, below), larger to to[above, n); each
 /// value is written to both ends of the gap between them and kept where the comparisons say. The gap
 /// ends up as the values equal to the pivot (none: a pivot not among them).
@@ -45,13 +90,13 @@ void partition(std::size_t n, const Read& read, double pivot, double* to, std::s
 /// nth_element's hard-to-predict branches: three-way partitions, each copying the values into the half
 /// of `buffer` (resized to 2 n) that was not read. The first around `guess` unless it is NaN (the last
 /// sweep's median of the same kind of values, which most often splits them next to k), then around a
-/// median of three; the least or the largest in one pass. The result does not depend on the pivots;
+/// median of three; within kNearEnd of either end, in one pass (nearEnd()). The result does not depend on the pivots;
 /// `guess` is set to it. `read` is called in the first pass only.
 template <typename Read>
 double kthSmallest(std::size_t n, std::size_t k, const Read& read, std::vector<double>& buffer,
                    double& guess) {
-  if (k == 0 || k + 1 == n)
-    return guess = extremeOf(n, k, read);
+  if (k <= kNearEnd || n - 1 - k <= kNearEnd)
+    return guess = nearEnd(n, k, read);
   buffer.resize(2 * n);
   double* const halves[2] = {buffer.data(), buffer.data() + n};
   const auto medianOfThree = [](double a, double b, double c) {
@@ -72,8 +117,8 @@ double kthSmallest(std::size_t n, std::size_t k, const Read& read, std::vector<d
       return guess = pivot;
     }
     const auto at = [values](std::size_t i) { return values[i]; };
-    if (k == 0 || k + 1 == n)
-      return guess = extremeOf(n, k, at);
+    if (k <= kNearEnd || n - 1 - k <= kNearEnd)
+      return guess = nearEnd(n, k, at);
     pivot = medianOfThree(values[0], values[n / 2], values[n - 1]);
     partition(n, at, pivot, halves[half], below, above);
     values = halves[half];

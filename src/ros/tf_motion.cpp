@@ -223,25 +223,31 @@ void TfMotionSource::baseTransform(core::TimeNs time, Eigen::Matrix3d& rotation,
 
 void TfMotionSource::appendSampleTimes(core::TimeNs begin, core::TimeNs end,
                                        std::vector<core::TimeNs>& times) const {
-  const auto from = std::upper_bound(sample_times_.begin(), sample_times_.end(), begin);
+  const auto first = sample_times_.begin() + static_cast<std::ptrdiff_t>(sample_front_);
+  const auto from = std::upper_bound(first, sample_times_.end(), begin);
   times.insert(times.end(), from, std::lower_bound(from, sample_times_.end(), end));
 }
 
 core::TimeNs TfMotionSource::longestGap(core::TimeNs begin, core::TimeNs end) const {
-  return core::longestGapOf(sample_times_.begin(), sample_times_.end(), begin, end,
-                            [](core::TimeNs time) { return time; });
+  return core::longestGapOf(sample_times_.begin() + static_cast<std::ptrdiff_t>(sample_front_),
+                            sample_times_.end(), begin, end, [](core::TimeNs time) { return time; });
 }
 
 void TfMotionSource::addSampleTime(core::TimeNs time) {
-  if (sample_times_.empty() || time > sample_times_.back()) {
+  if (sample_front_ == sample_times_.size() || time > sample_times_.back()) {
     sample_times_.push_back(time);
   } else {
-    const auto it = std::lower_bound(sample_times_.begin(), sample_times_.end(), time);
+    const auto it = std::lower_bound(sample_times_.begin() + static_cast<std::ptrdiff_t>(sample_front_),
+                                     sample_times_.end(), time);
     if (it == sample_times_.end() || *it != time)
       sample_times_.insert(it, time);
   }
-  while (sample_times_.back() - sample_times_.front() > retention_)
-    sample_times_.pop_front();
+  while (sample_times_.back() - sample_times_[sample_front_] > retention_)
+    ++sample_front_;
+  if (2 * sample_front_ >= sample_times_.size()) {  // (each time moved once, on average)
+    sample_times_.erase(sample_times_.begin(), sample_times_.begin() + static_cast<std::ptrdiff_t>(sample_front_));
+    sample_front_ = 0;
+  }
 }
 
 }  // namespace lidar_deskew::ros_adapter

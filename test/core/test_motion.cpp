@@ -10,6 +10,7 @@
 
 #include "lidar_deskew/core/motion.h"
 #include "lidar_deskew/core/twist_motion.h"
+#include "../../src/core/kth_smallest.h"
 #include "../../src/core/pose_eigen.h"
 
 namespace lidar_deskew::core {
@@ -801,6 +802,34 @@ TEST(TwistMotion, UsesASourceWithoutSamplesAsItIs) {
   EXPECT_EQ(&motion.prepare(samples, kT0 + kSecond / 2, kT0 + 2 * kSecond), &samples);
   EXPECT_EQ(&motion.prepare(samples, kT0 + kSecond / 4, kT0 + kSecond / 2), &motion);
   EXPECT_THROW(motion.basePose(kT0 + 3 * kSecond), MotionUnavailable);
+}
+
+// The twist fit's and the re-binner's medians: kthSmallest gives, bit for bit, what std::nth_element puts
+// at k, whatever its first pivot (none, a value among them, one between) and wherever k lies, near either
+// end of the values (one pass) or inside (partitions first), with ties and infinities among them.
+TEST(KthSmallest, IsWhatNthElementPutsAtK) {
+  std::mt19937_64 random(7);
+  std::vector<double> buffer;
+  for (int trial = 0; trial < 20000; ++trial) {
+    const std::size_t n = 1 + random() % 60;
+    std::vector<double> values(n);
+    const int kind = static_cast<int>(random() % 3);
+    for (double& value : values) {
+      value = kind == 0   ? static_cast<double>(random() % 4)  // many ties
+              : kind == 1 ? std::uniform_real_distribution<double>(0.0, 1.0)(random)
+                          : (random() % 6 == 0 ? INFINITY : static_cast<double>(random() % 100));
+    }
+    const std::size_t k = random() % n;
+    const int pivot = static_cast<int>(random() % 3);
+    double guess = pivot == 0 ? NAN : values[random() % n] + (pivot == 1 ? 0.0 : 0.5);
+    std::vector<double> sorted = values;
+    std::nth_element(sorted.begin(), sorted.begin() + static_cast<std::ptrdiff_t>(k), sorted.end());
+    const double* const data = values.data();
+    const double found =
+        detail::kthSmallest(n, k, [data](std::size_t i) { return data[i]; }, buffer, guess);
+    ASSERT_EQ(std::memcmp(&found, &sorted[k], sizeof found), 0) << "n " << n << " k " << k;
+    ASSERT_EQ(std::memcmp(&guess, &found, sizeof found), 0);
+  }
 }
 
 }  // namespace

@@ -9,6 +9,8 @@
 #include <cmath>
 #include <cstring>
 #include <optional>
+#include <random>
+#include <set>
 
 #include "lidar_deskew/core/deskew.h"
 #include "lidar_deskew/ros/bag_file.h"
@@ -782,6 +784,40 @@ TEST(TfFeed, RecordedOdometryIsAnsweredAsTf2WithoutALookup) {
   // tf2 is asked 1 ns before the first sample and after the last (7.7 ms included).
   EXPECT_EQ(fed.feed.motion().tfLookups(), lookups + 3);
   EXPECT_GT(queries, 400u);
+}
+
+// Sample times out of order and repeated, some older than the retention: kept are those within it of the
+// newest, each once, in order, as a set of all times fed filtered so; the gaps are that set's.
+TEST(TfMotionSource, SampleTimesAreTheRetainedSetOfAllFed) {
+  tf2::BufferCore buffer;
+  constexpr core::TimeNs kRetention = 1000;
+  ros_adapter::TfMotionSource motion(buffer, "odom", "base_link", kRetention);
+  std::mt19937_64 random(3);
+  std::set<core::TimeNs> fed;
+  core::TimeNs newest = 0;
+  for (int k = 0; k < 3000; ++k) {
+    const core::TimeNs time = 10 * k + static_cast<core::TimeNs>(random() % 400) - 200 + 5000;
+    motion.addSampleTime(time);
+    fed.insert(time);
+    newest = std::max(newest, time);
+    if (k == 0 || k % 97 != 0)
+      continue;
+    std::vector<core::TimeNs> kept;
+    for (const core::TimeNs t : fed) {
+      if (newest - t <= kRetention)
+        kept.push_back(t);
+    }
+    std::vector<core::TimeNs> times;
+    motion.appendSampleTimes(0, newest + 1, times);
+    ASSERT_EQ(times, kept) << "after " << k;
+    times.clear();
+    motion.appendSampleTimes(kept[3], kept[9], times);  // strictly inside
+    EXPECT_EQ(times, std::vector<core::TimeNs>(kept.begin() + 4, kept.begin() + 9));
+    core::TimeNs gap = 0;
+    for (std::size_t i = 2; i + 1 < kept.size() && kept[i] < kept[20]; ++i)
+      gap = std::max(gap, kept[i + 1] - kept[i]);
+    EXPECT_EQ(motion.longestGap(kept[2], kept[20]), gap);
+  }
 }
 
 }  // namespace
