@@ -296,12 +296,21 @@ inline __m128d squaredNorms(const Eigen::Vector3d* p) {
 /// of the corrected position's distance from the sensor to the raw one's: the range of the corrected
 /// point, in the driver's unit and from the driver's own origin (Ouster's beam origin lies a few cm from
 /// the sensor frame's: a still sensor's ranges stay as they were). Integers are rounded; values kept
-/// within their type; a value that is not finite, or would not be, is left as it was.
-template <typename T, bool kAdjacentXY, typename R>
+/// within their type; a value that is not finite, or would not be, is left as it was. kTime4: also
+/// writes `time_bits`, the bytes of a 4-byte time field's new value, at `time_offset` (Ouster's uint32
+/// t: no second pass over the block; only with a 32-bit integer range).
+template <typename T, bool kAdjacentXY, typename R, bool kTime4 = false>
 void writeReturnsAndRanges(const Coordinates& xyz, std::uint32_t range_offset, const std::uint32_t* byte_offsets,
                            const Eigen::Vector3d* raw, const Eigen::Vector3d* corrected, std::size_t count,
-                           std::uint8_t* data) {
+                           std::uint8_t* data, std::uint32_t time_offset = 0, std::uint32_t time_bits = 0) {
+  static_assert(!kTime4 || (std::is_integral_v<R> && sizeof(R) == 4), "a time field written with 32-bit ranges only");
   const std::uint32_t x = xyz.x.offset, y = xyz.y.offset, z = xyz.z.offset;
+  // x y z, and the time field when kTime4: a return's position.
+  const auto writePosition = [&](std::uint8_t* point, const Eigen::Vector3d& position) {
+    storePosition<T, kAdjacentXY>(point, x, y, z, position);
+    if constexpr (kTime4)
+      store(point + time_offset, time_bits);
+  };
   const auto value = [&](const std::uint8_t* point) { return static_cast<double>(load<R>(point + range_offset)); };
   // One return's range alone: value * |corrected| / |raw| (norm() is the square root of squaredNorm()).
   const auto writeRange = [&](std::uint8_t* point, const Eigen::Vector3d& corrected_position,
@@ -326,7 +335,7 @@ void writeReturnsAndRanges(const Coordinates& xyz, std::uint32_t range_offset, c
                          load<std::int32_t>(points[2] + range_offset), load<std::int32_t>(points[3] + range_offset)),
           squaredNorms(c), squaredNorms(c + 2), squaredNorms(r), squaredNorms(r + 2));
       for (int i = 0; i < 4; ++i)
-        storePosition<T, kAdjacentXY>(points[i], x, y, z, c[i]);
+        writePosition(points[i], c[i]);
       alignas(16) std::int32_t rounded[4];
       _mm_store_si128(reinterpret_cast<__m128i*>(rounded), estimates.rounded);
       if (estimates.sure == 0xf) {
@@ -353,8 +362,8 @@ void writeReturnsAndRanges(const Coordinates& xyz, std::uint32_t range_offset, c
     const Eigen::Array2d corrected_squared(corrected[k].squaredNorm(), corrected[k + 1].squaredNorm());
     const Eigen::Array2d raw_squared(raw[k].squaredNorm(), raw[k + 1].squaredNorm());
     const Eigen::Array2d scaled = values * corrected_squared.sqrt() / raw_squared.sqrt();
-    storePosition<T, kAdjacentXY>(first, x, y, z, corrected[k]);
-    storePosition<T, kAdjacentXY>(second, x, y, z, corrected[k + 1]);
+    writePosition(first, corrected[k]);
+    writePosition(second, corrected[k + 1]);
     // (a non-finite value, or a non-finite correction: left as it was)
     const bool first_finite = std::isfinite(scaled[0]), second_finite = std::isfinite(scaled[1]);
     R first_value, second_value;
@@ -367,7 +376,7 @@ void writeReturnsAndRanges(const Coordinates& xyz, std::uint32_t range_offset, c
   }
   if (k < count) {
     std::uint8_t* const point = data + byte_offsets[k];
-    storePosition<T, kAdjacentXY>(point, x, y, z, corrected[k]);
+    writePosition(point, corrected[k]);
     writeRange(point, corrected[k], raw[k]);
   }
 }
@@ -581,6 +590,25 @@ CloudOutputs CloudProcessor::correct(const PreparedCloud& prepared, const mrpt::
     }
     withFieldType(range->datatype, [&](auto typed) {
       using R = decltype(typed);
+      if constexpr (std::is_integral_v<R> && sizeof(R) == 4) {
+        // A 4-byte time field (Ouster's uint32 t): written in the same loop, its value's bytes.
+        if (!prepared.byAzimuth() && fieldSize(time.datatype) == 4) {
+          std::uint32_t time_bits = 0;
+          withFieldType(time.datatype, [&](auto time_typed) {
+            using TimeType = decltype(time_typed);
+            if constexpr (sizeof(TimeType) == sizeof time_bits) {
+              const auto value = static_cast<TimeType>(time_value);
+              std::memcpy(&time_bits, &value, sizeof time_bits);
+            }
+          });
+          writeBlocks([&](const std::uint32_t* offsets, const Eigen::Vector3d* raw_points,
+                          const Eigen::Vector3d* corrected, std::size_t count, std::uint8_t* data) {
+            writeReturnsAndRanges<T, kAdjacentXY, R, true>(xyz, range->offset, offsets, raw_points, corrected, count,
+                                                           data, time.offset, time_bits);
+          });
+          return;
+        }
+      }
       writeBlocks([&](const std::uint32_t* offsets, const Eigen::Vector3d* raw_points,
                       const Eigen::Vector3d* corrected, std::size_t count, std::uint8_t* data) {
         writeReturnsAndRanges<T, kAdjacentXY, R>(xyz, range->offset, offsets, raw_points, corrected, count, data);
