@@ -90,8 +90,8 @@ void partition(std::size_t n, const Read& read, double pivot, double* to, std::s
 /// nth_element's hard-to-predict branches: three-way partitions, each copying the values into the half
 /// of `buffer` (resized to 2 n) that was not read. The first around `guess` unless it is NaN (the last
 /// sweep's median of the same kind of values, which most often splits them next to k), then around a
-/// median of three; within kNearEnd of either end, in one pass (nearEnd()). The result does not depend on the pivots;
-/// `guess` is set to it. `read` is called in the first pass only.
+/// median of three; within kNearEnd of either end, in one pass (nearEnd()). The result does not depend
+/// on the pivots; `guess` is set to it. `read` is called in the first pass only.
 template <typename Read>
 double kthSmallest(std::size_t n, std::size_t k, const Read& read, std::vector<double>& buffer,
                    double& guess) {

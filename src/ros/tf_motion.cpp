@@ -245,7 +245,8 @@ void TfMotionSource::addSampleTime(core::TimeNs time) {
   while (sample_times_.back() - sample_times_[sample_front_] > retention_)
     ++sample_front_;
   if (2 * sample_front_ >= sample_times_.size()) {  // (each time moved once, on average)
-    sample_times_.erase(sample_times_.begin(), sample_times_.begin() + static_cast<std::ptrdiff_t>(sample_front_));
+    sample_times_.erase(sample_times_.begin(),
+                        sample_times_.begin() + static_cast<std::ptrdiff_t>(sample_front_));
     sample_front_ = 0;
   }
 }
