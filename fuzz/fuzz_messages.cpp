@@ -6,6 +6,7 @@
 // whole pipeline between two good scans, with a real tf2 buffer (stale tf, a transform at its stamp):
 // it never throws and never costs the good ones.
 #include <fuzzer/FuzzedDataProvider.h>
+#include <pcl_ros/point_cloud.h>  // the clouds serialized as subscribers get them
 #include <ros/serialization.h>
 #include <sensor_msgs/PointCloud2.h>
 #include <sensor_msgs/point_cloud2_iterator.h>
