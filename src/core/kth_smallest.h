@@ -9,20 +9,6 @@
 
 namespace lidar_deskew::core::detail {
 
-/// The least (k = 0) or the largest value of read(0) .. read(n - 1).
-template <typename Read>
-double extremeOf(std::size_t n, std::size_t k, const Read& read) {
-  double extreme = read(0);
-  if (k == 0) {
-    for (std::size_t i = 1; i < n; ++i)
-      extreme = std::min(extreme, read(i));
-  } else {
-    for (std::size_t i = 1; i < n; ++i)
-      extreme = std::max(extreme, read(i));
-  }
-  return extreme;
-}
-
 /// How far from either end of its values k may lie for nearEnd() to finish the selection in one pass.
 constexpr std::size_t kNearEnd = 3;
 
@@ -51,7 +37,7 @@ double nearEndOf(std::size_t n, std::size_t m, const Read& read) {
   static_assert(kNearEnd == 3, "the cases below");
   switch (m) {
     case 0:
-      return extremeOf(n, kLargest ? 1 : 0, read);  // (1: the largest)
+      return orderedNearEnd<0, kLargest>(n, read);
     case 1:
       return orderedNearEnd<1, kLargest>(n, read);
     case 2:
