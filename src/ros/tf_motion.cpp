@@ -223,30 +223,27 @@ void TfMotionSource::baseTransform(core::TimeNs time, Eigen::Matrix3d& rotation,
 
 void TfMotionSource::appendSampleTimes(core::TimeNs begin, core::TimeNs end,
                                        std::vector<core::TimeNs>& times) const {
-  const auto first = sample_times_.begin() + static_cast<std::ptrdiff_t>(sample_front_);
-  const auto from = std::upper_bound(first, sample_times_.end(), begin);
+  const auto from = std::upper_bound(keptTimes(), sample_times_.end(), begin);
   times.insert(times.end(), from, std::lower_bound(from, sample_times_.end(), end));
 }
 
 core::TimeNs TfMotionSource::longestGap(core::TimeNs begin, core::TimeNs end) const {
-  return core::longestGapOf(sample_times_.begin() + static_cast<std::ptrdiff_t>(sample_front_),
-                            sample_times_.end(), begin, end, [](core::TimeNs time) { return time; });
+  return core::longestGapOf(keptTimes(), sample_times_.end(), begin, end,
+                            [](core::TimeNs time) { return time; });
 }
 
 void TfMotionSource::addSampleTime(core::TimeNs time) {
   if (sample_front_ == sample_times_.size() || time > sample_times_.back()) {
     sample_times_.push_back(time);
   } else {
-    const auto it = std::lower_bound(sample_times_.begin() + static_cast<std::ptrdiff_t>(sample_front_),
-                                     sample_times_.end(), time);
+    const auto it = std::lower_bound(keptTimes(), sample_times_.cend(), time);
     if (it == sample_times_.end() || *it != time)
       sample_times_.insert(it, time);
   }
   while (sample_times_.back() - sample_times_[sample_front_] > retention_)
     ++sample_front_;
   if (2 * sample_front_ >= sample_times_.size()) {  // (each time moved once, on average)
-    sample_times_.erase(sample_times_.begin(),
-                        sample_times_.begin() + static_cast<std::ptrdiff_t>(sample_front_));
+    sample_times_.erase(sample_times_.begin(), keptTimes());
     sample_front_ = 0;
   }
 }

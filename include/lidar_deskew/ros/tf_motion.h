@@ -173,6 +173,10 @@ class TfMotionSource final : public core::MotionSource {
   /// and erased in one go once they are as many as the rest (a vector: searched faster than a deque).
   std::vector<core::TimeNs> sample_times_;
   std::size_t sample_front_ = 0;
+  /// The first kept of sample_times_.
+  std::vector<core::TimeNs>::const_iterator keptTimes() const {
+    return sample_times_.begin() + static_cast<std::ptrdiff_t>(sample_front_);
+  }
   bool single_link_ = false;
   OneLinkChain chain_;
   mutable std::size_t tf_lookups_ = 0;
