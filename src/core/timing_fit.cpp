@@ -1072,10 +1072,16 @@ void TimingCheck::addShapePair(const PlanarScan& scan, const mrpt::poses::CPose3
   refine.rotation_search = config_.refine_search;
   refine.iterations = config_.refine_iterations;
   std::vector<double> distances{raw_match.distance};
+  const double cap = shape.match.score.cap;
   for (std::size_t t = 0; t < timings_.size(); ++t) {
     const ScanMatch match = matchScans(placed[t], entry.placed[t].points(), raw_match.pose, refine);
-    // A timing under which the two do not even align counts the cap.
-    distances.push_back(aligned(match) ? match.distance : shape.match.score.cap);
+    // A timing under which the two do not even align counts the cap. One that aligns is scored over at
+    // least as many of the checked scan's points as raw aligned: the points it lost count the cap (a
+    // partner corrected out of shape that still overlaps half of the scan aligns that half closely).
+    const double lost = std::max(0.0, raw_match.overlap - match.overlap);
+    distances.push_back(aligned(match) ? (match.overlap * match.distance + lost * cap) /
+                                             std::max(match.overlap, raw_match.overlap)
+                                       : cap);
   }
   shape_pairs_.push_back(std::move(distances));
   if (shape_pairs_.size() > config_.shape_history)

@@ -11,23 +11,17 @@
 
 #include <diagnostic_msgs/DiagnosticStatus.h>
 
+#include "../support/turning_drive.h"
 #include "live_rig.h"
 
 namespace lidar_deskew::test {
 namespace {
 
-/// Turns that start and stop, both ways, with some driving; or (turning = false) a slow straight drive.
+/// Turns that start and stop, both ways, for 482 s; or (turning = false) a slow straight drive.
 std::vector<sim::MotionPiece> drive(bool turning) {
   if (!turning)
     return {{1.0, 0.05, 0.0, 0.0}};
-  std::vector<sim::MotionPiece> pieces;
-  for (int k = 0; k < 172; ++k) {  // 482 s
-    pieces.push_back({0.6, 0.0, 0.0, 0.0});
-    pieces.push_back({0.8, 0.0, 0.0, 2.5});
-    pieces.push_back({0.6, 0.0, 0.0, 0.0});
-    pieces.push_back({0.8, 0.0, 0.0, -2.5});
-  }
-  return pieces;
+  return test_support::startStopTurns(480.0);
 }
 
 TEST(TimingCheck, ReportsWhetherTheTimingFits) {

@@ -4,6 +4,7 @@
 
 #include <mrpt/poses/CPose3D.h>
 
+#include <cmath>
 #include <vector>
 
 #include "lidar_deskew/core/motion.h"
@@ -28,6 +29,19 @@ struct TurningDrive {
                                        {1.0, 0.0, 0.0, 0.0}}};
   double duration = 10.0;  ///< [s]
 };
+
+/// Turns in place at +-2.5 rad/s that start and stop (0.6 s still, 0.8 s turning, each way: 2.8 s a
+/// round), `seconds` and up to a round more: the live timing check's drive.
+inline std::vector<sim::MotionPiece> startStopTurns(double seconds) {
+  std::vector<sim::MotionPiece> pieces;
+  for (int k = 0; k < static_cast<int>(std::ceil(seconds / 2.8)); ++k) {
+    pieces.push_back({0.6, 0.0, 0.0, 0.0});
+    pieces.push_back({0.8, 0.0, 0.0, 2.5});
+    pieces.push_back({0.6, 0.0, 0.0, 0.0});
+    pieces.push_back({0.8, 0.0, 0.0, -2.5});
+  }
+  return pieces;
+}
 
 /// The drive's scans and its odometry samples, and the laser's mount.
 struct TurningRecording {
