@@ -1,9 +1,14 @@
 // The launch files as users call them (launch_files.test): two instances on two scans publish on
 // outputs named after their inputs, never on one topic; a `params:=` file is layered over
-// config/deskew.yaml, an argument given on the command line wins over both.
+// config/deskew.yaml, an argument given on the command line wins over both. A plain node given an
+// invalid value ends with status 1.
 #include <gtest/gtest.h>
 #include <ros/ros.h>
 
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cstdio>
 #include <map>
 #include <string>
 
@@ -61,6 +66,43 @@ TEST(LaunchFiles, ParamsFileOverDefaultsAndArgumentsOverTheFile) {
   EXPECT_EQ(value, "end");
   ASSERT_TRUE(ros::param::get("/rear_deskew/base_frame", value));
   EXPECT_EQ(value, "base_link");
+}
+
+/// The plain nodes' main (node::runLiveNode): an invalid parameter is a FATAL line naming it, and the
+/// process ends with status 1 (what roslaunch reports, and respawn sees), for either node.
+TEST(LaunchFiles, AnInvalidParameterEndsAPlainNodeWithStatusOne) {
+  // The nodes lie beside this test in the devel space.
+  char self[4096];
+  const ssize_t length = readlink("/proc/self/exe", self, sizeof self - 1);
+  ASSERT_GT(length, 0);
+  const std::string here = std::string(self, static_cast<std::size_t>(length));
+  const std::string folder = here.substr(0, here.rfind('/') + 1);
+  const struct {
+    const char* node;
+    const char* parameter;
+    const char* said;
+  } cases[] = {
+      {"deskew_node", "_reference:=sideways",
+       "invalid parameter reference: must be one of start|middle|end, got 'sideways'"},
+      {"deskew_cloud_node", "_interpolation:=cubic",
+       "invalid parameter interpolation: must be one of twist|linear, got 'cubic'"},
+  };
+  for (const auto& invalid : cases) {
+    // `timeout`: a node that took the value would spin until killed (status 124).
+    const std::string command = "timeout 30 " + folder + invalid.node + " __name:=invalid_" + invalid.node +
+                                " " + invalid.parameter + " 2>&1";
+    FILE* process = popen(command.c_str(), "r");
+    ASSERT_NE(process, nullptr);
+    std::string output;
+    char buffer[512];
+    while (std::fgets(buffer, sizeof buffer, process))
+      output += buffer;
+    const int status = pclose(process);
+    ASSERT_TRUE(WIFEXITED(status)) << command;
+    EXPECT_EQ(WEXITSTATUS(status), 1) << command << "\n" << output;
+    EXPECT_NE(output.find("FATAL"), std::string::npos) << output;
+    EXPECT_NE(output.find(invalid.said), std::string::npos) << output;
+  }
 }
 
 }  // namespace
