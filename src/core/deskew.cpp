@@ -417,14 +417,16 @@ void KnotTrajectory::correctPlanarScan(const PlanarScan& scan, double beam_perio
                run.offset_y);
   }
 
-  // The returns, in beam order, run by run of beams with one.
+  // The returns, in beam order, run by run of beams with one. The beam's number as a double counted along
+  // (exact: an integer below 2^53), not converted from size_t each time.
   out.points.resize(count);  // (resize() only initialises elements beyond the previous size)
   DeskewedPoint* write = out.points.data();
   for (beam = 0; beam < count; ++beam) {  // (the beam after a run has no return)
     const std::size_t run_end = beam + is_return.firstWithout(ranges + beam, count - beam);
-    for (; beam < run_end; ++beam, ++write) {
+    double beam_number = static_cast<double>(beam);
+    for (; beam < run_end; ++beam, ++write, beam_number += 1.0) {
       write->position = Eigen::Vector3d(point_x[beam], point_y[beam], point_z[beam]);
-      write->time_offset = static_cast<double>(beam) * beam_period - reference_offset;
+      write->time_offset = beam_number * beam_period - reference_offset;
       write->intensity = intensities ? intensities[beam] : 0.0f;
       write->beam_index = static_cast<std::uint32_t>(beam);
     }
