@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <stdexcept>
 
 #include "fast_atan2.h"
 
@@ -94,6 +95,8 @@ bool PlacedScan::distanceToContour(const Eigen::Vector2d& query, double radius, 
 bool PlacedScan::contourHit(const Eigen::Vector2d& query, double radius, ContourHit& hit) const {
   if (points_.empty())
     return false;
+  if (!indexed_)
+    throw std::logic_error("PlacedScan: looked up in, but assigned without its index");
   const auto bins = static_cast<std::ptrdiff_t>(bin_begin_.size() - 1);
   std::ptrdiff_t first = static_cast<std::ptrdiff_t>(binOf(query)) - kBinReach;  // binOf() < bins
   while (first < 0)
@@ -161,7 +164,7 @@ PlacedScan placeCorrected(const DeskewedScan& corrected, const mrpt::poses::CPos
 }
 
 void placeCorrected(const DeskewedScan& corrected, const mrpt::poses::CPose3D& laser, double bearing_step,
-                    std::size_t stride, PlacedScan& placed) {
+                    std::size_t stride, PlacedScan& placed, bool indexed) {
   stride = std::max<std::size_t>(1, stride);
   placed.assign(corrected.reference_time, {laser.x(), laser.y()}, bearing_step * static_cast<double>(stride),
                 [&](std::vector<Eigen::Vector2d>& points) {
@@ -172,7 +175,8 @@ void placeCorrected(const DeskewedScan& corrected, const mrpt::poses::CPose3D& l
                     const Eigen::Vector3d& position = corrected.points[i].position;
                     points.push_back(compose(position.x(), position.y(), position.z()));
                   }
-                });
+                },
+                indexed);
 }
 
 PlacedScan placeRaw(const PlanarScan& scan, const mrpt::poses::CPose3D& laser, TimeNs time,

@@ -401,13 +401,19 @@ void TimingFit::shift(double offset) {
   // The coarse search's pairs: at most coarse_pairs, spread evenly over the recording (pairs are in
   // the order of their earlier scan).
   coarse_pairs_.assign(pairs_.size(), 0);
-  coarse_scans_.assign(scans_.size(), 0);
+  coarse_scans_.assign(scans_.size(), kLeftOut);
   const std::size_t coarse = std::min(config_.coarse_pairs, pairs_.size());
   for (std::size_t k = 0; k < coarse; ++k) {
     const std::size_t p = spreadIndex(k, coarse, pairs_.size());
     coarse_pairs_[p] = 1;
-    coarse_scans_[pairs_[p].first] = coarse_scans_[pairs_[p].second] = 1;
+    if (coarse_scans_[pairs_[p].second] == kLeftOut)
+      coarse_scans_[pairs_[p].second] = kPointsOnly;
   }
+  for (std::size_t k = 0; k < coarse; ++k)
+    coarse_scans_[pairs_[spreadIndex(k, coarse, pairs_.size())].first] = kPlaced;
+  fine_scans_.assign(scans_.size(), kPointsOnly);
+  for (const auto& pair : pairs_)
+    fine_scans_[pair.first] = kPlaced;
 }
 
 std::size_t TimingFit::turningScans() const {
@@ -416,12 +422,13 @@ std::size_t TimingFit::turningScans() const {
 }
 
 bool TimingFit::placeOne(std::size_t i, const TimingConfig& timing, ScanDeskewer& deskewer,
-                         DeskewedScan& corrected, PlacedScan& result, std::size_t stride) const {
+                         DeskewedScan& corrected, PlacedScan& result, std::size_t stride,
+                         bool indexed) const {
   const PlanarScan& scan = scans_[i];
   try {
     deskewer.deskew(scan, resolveTiming(scan, timing), mount_, motion_, corrected);
     placeCorrected(corrected, motion_.basePose(corrected.reference_time) + mount_,
-                   std::abs(static_cast<double>(scan.angle_increment)), stride, result);
+                   std::abs(static_cast<double>(scan.angle_increment)), stride, result, indexed);
     return true;
   } catch (const InvalidInput&) {
   } catch (const MotionUnavailable&) {
@@ -450,13 +457,14 @@ void TimingFit::place(const TimingConfig& timing, std::vector<PlacedScan>& place
     placed_scans->assign(scans_.size(), 0);
   for (std::size_t i = 0; i < scans_.size(); ++i) {
     bool ok = false;
-    if (needed && !(*needed)[i]) {
+    if (needed && (*needed)[i] == kLeftOut) {
       placed[i].clear();
     } else {
       // The coarse search places at most about 360 returns a scan (every k-th): it only has to find the
       // valley.
       const std::size_t stride = coarse ? (scans_[i].ranges.size() + 359) / 360 : 1;
-      ok = placeOne(i, timing, deskewer, corrected, placed[i], std::max<std::size_t>(1, stride));
+      ok = placeOne(i, timing, deskewer, corrected, placed[i], std::max<std::size_t>(1, stride),
+                    !needed || (*needed)[i] != kPointsOnly);
     }
     if (placed_scans)
       (*placed_scans)[i] = ok;
@@ -496,7 +504,7 @@ std::vector<double> TimingFit::pairDistances(const TimingConfig& timing) const {
 std::vector<double> TimingFit::pairDistances(const TimingConfig& timing, std::vector<char>& scored,
                                              bool coarse, std::vector<PlacedScan>& placed) const {
   std::vector<char> placed_scans;
-  place(timing, placed, &placed_scans, coarse, coarse ? &coarse_scans_ : nullptr);
+  place(timing, placed, &placed_scans, coarse, coarse ? &coarse_scans_ : &fine_scans_);
   const ConsistencyConfig& measure = coarse ? config_.coarse_consistency : config_.consistency;
   std::vector<double> distances(pairs_.size(), std::numeric_limits<double>::quiet_NaN());
   scored.assign(pairs_.size(), 0);
