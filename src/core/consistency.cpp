@@ -38,10 +38,12 @@ std::size_t binAt(double x, double y, double inverse_bin_width, std::size_t bins
   return bin >= bins ? bin - bins : bin;
 }
 
-/// binAt() of `count` points at once into `bins_of`, two at a time in SSE2 lanes by fastAtan2()'s
-/// operations (the same bits; the selections as masks), the bins being fewer than 2^31.
-void binsOf(const Eigen::Vector2d* points, std::size_t count, const Eigen::Vector2d& origin,
-            double inverse_bin_width, std::size_t bins, std::uint32_t* bins_of) {
+/// binAt() of `count` points (every `stride`-th from `points`) at once into `bins_of`, two at a time in
+/// SSE2 lanes by fastAtan2()'s operations (the same bits; the selections as masks), the bins being
+/// fewer than 2^31.
+void binsOf(const Eigen::Vector2d* points, std::size_t count, std::size_t stride,
+            const Eigen::Vector2d& origin, double inverse_bin_width, std::size_t bins,
+            std::uint32_t* bins_of) {
   std::size_t i = 0;
 #if defined(__SSE2__)
   const __m128d sign = _mm_set1_pd(-0.0), zero = _mm_setzero_pd();
@@ -55,7 +57,8 @@ void binsOf(const Eigen::Vector2d* points, std::size_t count, const Eigen::Vecto
     return _mm_add_pd(_mm_set1_pd(c), _mm_mul_pd(s, inner));
   };
   for (; i + 1 < count; i += 2) {
-    const __m128d first = _mm_loadu_pd(points[i].data()), second = _mm_loadu_pd(points[i + 1].data());
+    const __m128d first = _mm_loadu_pd(points[i * stride].data());
+    const __m128d second = _mm_loadu_pd(points[(i + 1) * stride].data());
     const __m128d x = _mm_sub_pd(_mm_unpacklo_pd(first, second), origin_x);
     const __m128d y = _mm_sub_pd(_mm_unpackhi_pd(first, second), origin_y);
     const __m128d ax = _mm_andnot_pd(sign, x), ay = _mm_andnot_pd(sign, y);
@@ -84,8 +87,9 @@ void binsOf(const Eigen::Vector2d* points, std::size_t count, const Eigen::Vecto
   }
 #endif
   for (; i < count; ++i) {
+    const Eigen::Vector2d& point = points[i * stride];
     bins_of[i] = static_cast<std::uint32_t>(
-        binAt(points[i].x() - origin.x(), points[i].y() - origin.y(), inverse_bin_width, bins));
+        binAt(point.x() - origin.x(), point.y() - origin.y(), inverse_bin_width, bins));
   }
 }
 
@@ -116,7 +120,7 @@ void PlacedScan::index(TimeNs time, const Eigen::Vector2d& origin, double bearin
   std::vector<std::uint32_t>& bin_of = bin_of_;
   bin_begin_.assign(bins + 1, 0);
   bin_of.resize(points_.size());
-  binsOf(points_.data(), points_.size(), origin_, inverse_bin_width_, bins, bin_of.data());
+  binsOf(points_.data(), points_.size(), 1, origin_, inverse_bin_width_, bins, bin_of.data());
   for (std::size_t i = 0; i < points_.size(); ++i)
     ++bin_begin_[bin_of[i] + 1];
   for (std::size_t b = 0; b < bins; ++b)
@@ -152,8 +156,38 @@ bool PlacedScan::contourHit(const Eigen::Vector2d& query, double radius, Contour
     return false;
   if (!indexed_)
     throw std::logic_error("PlacedScan: looked up in, but assigned without its index");
+  return contourHitIn(binOf(query), query, radius, hit);
+}
+
+std::size_t PlacedScan::sumDistancesToContour(const std::vector<Eigen::Vector2d>& queries, std::size_t stride,
+                                              double radius, double cap, double& sum) const {
+  if (points_.empty())
+    return 0;
+  if (!indexed_)
+    throw std::logic_error("PlacedScan: looked up in, but assigned without its index");
+  constexpr std::size_t kChunk = 64;
+  std::uint32_t bins[kChunk];
+  std::size_t found = 0;
+  ContourHit hit;
+  const std::size_t count = (queries.size() + stride - 1) / stride;
+  for (std::size_t begin = 0; begin < count; begin += kChunk) {
+    const std::size_t chunk = std::min(kChunk, count - begin);
+    binsOf(queries.data() + begin * stride, chunk, stride, origin_, inverse_bin_width_, bin_begin_.size() - 1,
+           bins);
+    for (std::size_t k = 0; k < chunk; ++k) {
+      if (!contourHitIn(bins[k], queries[(begin + k) * stride], radius, hit))
+        continue;
+      sum += std::min(hit.distance, cap);
+      ++found;
+    }
+  }
+  return found;
+}
+
+bool PlacedScan::contourHitIn(std::size_t query_bin, const Eigen::Vector2d& query, double radius,
+                              ContourHit& hit) const {
   const auto bins = static_cast<std::ptrdiff_t>(bin_begin_.size() - 1);
-  std::ptrdiff_t first = static_cast<std::ptrdiff_t>(binOf(query)) - kBinReach;  // binOf() < bins
+  std::ptrdiff_t first = static_cast<std::ptrdiff_t>(query_bin) - kBinReach;  // binOf() < bins
   while (first < 0)
     first += bins;
   double best = radius * radius;
@@ -258,15 +292,9 @@ double pairDistance(const PlacedScan& scan, const PlacedScan& other, const Consi
   const std::size_t stride =
       std::max<std::size_t>(1, (points.size() + config.max_points - 1) / config.max_points);
   double sum = 0.0;
-  std::size_t used = 0;
-  std::size_t overlapping = 0;
-  for (std::size_t i = 0; i < points.size(); i += stride, ++used) {
-    double distance, nearest;
-    if (!other.distanceToContour(points[i], config.overlap_radius, distance, nearest))
-      continue;
-    sum += std::min(distance, config.cap);
-    ++overlapping;
-  }
+  const std::size_t used = (points.size() + stride - 1) / stride;
+  const std::size_t overlapping =
+      other.sumDistancesToContour(points, stride, config.overlap_radius, config.cap, sum);
   if (overlap)
     *overlap = used ? static_cast<double>(overlapping) / used : 0.0;
   return overlapping ? sum / overlapping : std::numeric_limits<double>::quiet_NaN();

@@ -73,12 +73,19 @@ class PlacedScan {
   };
   /// distanceToContour() with the nearest point and the contour's normal there.
   bool contourHit(const Eigen::Vector2d& query, double radius, ContourHit& hit) const;
+  /// distanceToContour() of every `stride`-th of `queries` (from the first): adds min(distance, cap) of
+  /// each found to `sum`, in order, and returns how many were found; the bearings a few at a time.
+  std::size_t sumDistancesToContour(const std::vector<Eigen::Vector2d>& queries, std::size_t stride,
+                                    double radius, double cap, double& sum) const;
 
  private:
   static void checkBearingStep(double bearing_step);
   // Sets time, origin and the bins of points_.
   void index(TimeNs time, const Eigen::Vector2d& origin, double bearing_step);
   std::size_t binOf(const Eigen::Vector2d& point) const;
+  // contourHit() of a query in bin `query_bin` (binOf(query)).
+  bool contourHitIn(std::size_t query_bin, const Eigen::Vector2d& query, double radius,
+                    ContourHit& hit) const;
 
   TimeNs time_ = 0;
   Eigen::Vector2d origin_ = Eigen::Vector2d::Zero();
