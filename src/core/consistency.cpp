@@ -3,8 +3,10 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <stdexcept>
 
 #include "fast_atan2.h"
+#include "simd.h"
 
 namespace lidar_deskew::core {
 namespace {
@@ -28,6 +30,68 @@ class PlanarCompose {
  private:
   double r00_, r01_, r02_, r10_, r11_, r12_, x_, y_;
 };
+
+/// The bin of a point at (x, y) from the origin, of `bins` round the circle.
+std::size_t binAt(double x, double y, double inverse_bin_width, std::size_t bins) {
+  const double bearing = fastAtan2(y, x) + M_PI;  // [0, 2pi]
+  const auto bin = static_cast<std::size_t>(std::max(0.0, bearing * inverse_bin_width));
+  return bin >= bins ? bin - bins : bin;
+}
+
+/// binAt() of `count` points (every `stride`-th from `points`) at once into `bins_of`, two at a time in
+/// SSE2 lanes by fastAtan2()'s operations (the same bits; the selections as masks), the bins being
+/// fewer than 2^31.
+void binsOf(const Eigen::Vector2d* points, std::size_t count, std::size_t stride,
+            const Eigen::Vector2d& origin, double inverse_bin_width, std::size_t bins,
+            std::uint32_t* bins_of) {
+  std::size_t i = 0;
+#if defined(__SSE2__)
+  const __m128d sign = _mm_set1_pd(-0.0), zero = _mm_setzero_pd();
+  const __m128d origin_x = _mm_set1_pd(origin.x()), origin_y = _mm_set1_pd(origin.y());
+  const __m128d half_pi = _mm_set1_pd(M_PI_2), pi = _mm_set1_pd(M_PI);
+  const __m128d inverse = _mm_set1_pd(inverse_bin_width);
+  const auto select = [](__m128d mask, __m128d yes, __m128d no) {
+    return _mm_or_pd(_mm_and_pd(mask, yes), _mm_andnot_pd(mask, no));
+  };
+  const auto term = [](__m128d s, double c, __m128d inner) {
+    return _mm_add_pd(_mm_set1_pd(c), _mm_mul_pd(s, inner));
+  };
+  for (; i + 1 < count; i += 2) {
+    const __m128d first = _mm_loadu_pd(points[i * stride].data());
+    const __m128d second = _mm_loadu_pd(points[(i + 1) * stride].data());
+    const __m128d x = _mm_sub_pd(_mm_unpacklo_pd(first, second), origin_x);
+    const __m128d y = _mm_sub_pd(_mm_unpackhi_pd(first, second), origin_y);
+    const __m128d ax = _mm_andnot_pd(sign, x), ay = _mm_andnot_pd(sign, y);
+    const __m128d high = _mm_max_pd(ay, ax);  // std::max(ax, ay): ax < ay ? ay : ax
+    const __m128d a = _mm_div_pd(_mm_min_pd(ay, ax), high);  // std::min(ax, ay): ay < ax ? ay : ax
+    const __m128d s = _mm_mul_pd(a, a);
+    __m128d r = _mm_mul_pd(s, _mm_set1_pd(-0.0040733094638858158));
+    r = _mm_add_pd(_mm_set1_pd(0.02194661103058218), r);
+    r = term(s, -0.056063176726315958, r);
+    r = term(s, 0.096562564702695933, r);
+    r = term(s, -0.1391580226062557, r);
+    r = term(s, 0.19948508985754437, r);
+    r = term(s, -0.33330106677687926, r);
+    r = _mm_mul_pd(a, term(s, 0.99999943684314718, r));
+    r = select(_mm_cmpgt_pd(ay, ax), _mm_sub_pd(half_pi, r), r);
+    r = select(_mm_cmplt_pd(x, zero), _mm_sub_pd(pi, r), r);
+    r = select(_mm_cmplt_pd(y, zero), _mm_xor_pd(sign, r), r);
+    r = _mm_andnot_pd(_mm_cmpeq_pd(high, zero), r);  // fastAtan2(0, 0) = 0
+    const __m128d scaled = _mm_mul_pd(_mm_add_pd(r, pi), inverse);
+    const __m128i truncated = _mm_cvttpd_epi32(_mm_max_pd(scaled, zero));  // std::max(0.0, scaled)
+    const auto wrap = [bins](int bin) {
+      return static_cast<std::uint32_t>(static_cast<std::size_t>(bin) >= bins ? bin - bins : bin);
+    };
+    bins_of[i] = wrap(_mm_cvtsi128_si32(truncated));
+    bins_of[i + 1] = wrap(_mm_cvtsi128_si32(_mm_srli_si128(truncated, 4)));
+  }
+#endif
+  for (; i < count; ++i) {
+    const Eigen::Vector2d& point = points[i * stride];
+    bins_of[i] = static_cast<std::uint32_t>(
+        binAt(point.x() - origin.x(), point.y() - origin.y(), inverse_bin_width, bins));
+  }
+}
 
 }  // namespace
 
@@ -56,10 +120,9 @@ void PlacedScan::index(TimeNs time, const Eigen::Vector2d& origin, double bearin
   std::vector<std::uint32_t>& bin_of = bin_of_;
   bin_begin_.assign(bins + 1, 0);
   bin_of.resize(points_.size());
-  for (std::size_t i = 0; i < points_.size(); ++i) {
-    bin_of[i] = static_cast<std::uint32_t>(binOf(points_[i]));
+  binsOf(points_.data(), points_.size(), 1, origin_, inverse_bin_width_, bins, bin_of.data());
+  for (std::size_t i = 0; i < points_.size(); ++i)
     ++bin_begin_[bin_of[i] + 1];
-  }
   for (std::size_t b = 0; b < bins; ++b)
     bin_begin_[b + 1] += bin_begin_[b];
   by_bin_.resize(points_.size());
@@ -75,10 +138,7 @@ void PlacedScan::index(TimeNs time, const Eigen::Vector2d& origin, double bearin
 }
 
 std::size_t PlacedScan::binOf(const Eigen::Vector2d& point) const {
-  const double bearing = fastAtan2(point.y() - origin_.y(), point.x() - origin_.x()) + M_PI;  // [0, 2pi]
-  const std::size_t bins = bin_begin_.size() - 1;
-  const auto bin = static_cast<std::size_t>(std::max(0.0, bearing * inverse_bin_width_));
-  return bin >= bins ? bin - bins : bin;
+  return binAt(point.x() - origin_.x(), point.y() - origin_.y(), inverse_bin_width_, bin_begin_.size() - 1);
 }
 
 bool PlacedScan::distanceToContour(const Eigen::Vector2d& query, double radius, double& distance,
@@ -94,8 +154,40 @@ bool PlacedScan::distanceToContour(const Eigen::Vector2d& query, double radius, 
 bool PlacedScan::contourHit(const Eigen::Vector2d& query, double radius, ContourHit& hit) const {
   if (points_.empty())
     return false;
+  if (!indexed_)
+    throw std::logic_error("PlacedScan: looked up in, but assigned without its index");
+  return contourHitIn(binOf(query), query, radius, hit);
+}
+
+std::size_t PlacedScan::sumDistancesToContour(const std::vector<Eigen::Vector2d>& queries, std::size_t stride,
+                                              double radius, double cap, double& sum) const {
+  if (points_.empty())
+    return 0;
+  if (!indexed_)
+    throw std::logic_error("PlacedScan: looked up in, but assigned without its index");
+  constexpr std::size_t kChunk = 64;
+  std::uint32_t bins[kChunk];
+  std::size_t found = 0;
+  ContourHit hit;
+  const std::size_t count = (queries.size() + stride - 1) / stride;
+  for (std::size_t begin = 0; begin < count; begin += kChunk) {
+    const std::size_t chunk = std::min(kChunk, count - begin);
+    binsOf(queries.data() + begin * stride, chunk, stride, origin_, inverse_bin_width_, bin_begin_.size() - 1,
+           bins);
+    for (std::size_t k = 0; k < chunk; ++k) {
+      if (!contourHitIn(bins[k], queries[(begin + k) * stride], radius, hit))
+        continue;
+      sum += std::min(hit.distance, cap);
+      ++found;
+    }
+  }
+  return found;
+}
+
+bool PlacedScan::contourHitIn(std::size_t query_bin, const Eigen::Vector2d& query, double radius,
+                              ContourHit& hit) const {
   const auto bins = static_cast<std::ptrdiff_t>(bin_begin_.size() - 1);
-  std::ptrdiff_t first = static_cast<std::ptrdiff_t>(binOf(query)) - kBinReach;  // binOf() < bins
+  std::ptrdiff_t first = static_cast<std::ptrdiff_t>(query_bin) - kBinReach;  // binOf() < bins
   while (first < 0)
     first += bins;
   double best = radius * radius;
@@ -161,7 +253,7 @@ PlacedScan placeCorrected(const DeskewedScan& corrected, const mrpt::poses::CPos
 }
 
 void placeCorrected(const DeskewedScan& corrected, const mrpt::poses::CPose3D& laser, double bearing_step,
-                    std::size_t stride, PlacedScan& placed) {
+                    std::size_t stride, PlacedScan& placed, bool indexed) {
   stride = std::max<std::size_t>(1, stride);
   placed.assign(corrected.reference_time, {laser.x(), laser.y()}, bearing_step * static_cast<double>(stride),
                 [&](std::vector<Eigen::Vector2d>& points) {
@@ -172,7 +264,8 @@ void placeCorrected(const DeskewedScan& corrected, const mrpt::poses::CPose3D& l
                     const Eigen::Vector3d& position = corrected.points[i].position;
                     points.push_back(compose(position.x(), position.y(), position.z()));
                   }
-                });
+                },
+                indexed);
 }
 
 PlacedScan placeRaw(const PlanarScan& scan, const mrpt::poses::CPose3D& laser, TimeNs time,
@@ -199,15 +292,9 @@ double pairDistance(const PlacedScan& scan, const PlacedScan& other, const Consi
   const std::size_t stride =
       std::max<std::size_t>(1, (points.size() + config.max_points - 1) / config.max_points);
   double sum = 0.0;
-  std::size_t used = 0;
-  std::size_t overlapping = 0;
-  for (std::size_t i = 0; i < points.size(); i += stride, ++used) {
-    double distance, nearest;
-    if (!other.distanceToContour(points[i], config.overlap_radius, distance, nearest))
-      continue;
-    sum += std::min(distance, config.cap);
-    ++overlapping;
-  }
+  const std::size_t used = (points.size() + stride - 1) / stride;
+  const std::size_t overlapping =
+      other.sumDistancesToContour(points, stride, config.overlap_radius, config.cap, sum);
   if (overlap)
     *overlap = used ? static_cast<double>(overlapping) / used : 0.0;
   return overlapping ? sum / overlapping : std::numeric_limits<double>::quiet_NaN();

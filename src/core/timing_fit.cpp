@@ -2,8 +2,11 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
+#include <cstring>
 #include <limits>
+#include <map>
 #include <random>
 #include <set>
 #include <sstream>
@@ -48,8 +51,34 @@ void finish(Curve& curve, double cap) {
   }
 }
 
+/// One search's rows already scored (one fit, one beam order and period), by measure and offset: the
+/// window widened round the same centre, or the window alone after the whole range, holds offsets
+/// scored before, bit for bit (centre + k step), and a row depends on its offset alone.
+class RowCache {
+ public:
+  struct Row {
+    std::vector<double> distances;  // [member] as Curve::pairs
+    std::vector<char> scored;       // [member] placed at this offset
+  };
+  /// The row of `offset` under the measure, or nullptr.
+  const Row* find(bool coarse, double offset) const {
+    const auto found = rows_.find(key(coarse, offset));
+    return found == rows_.end() ? nullptr : &found->second;
+  }
+  void add(bool coarse, double offset, Row row) { rows_.emplace(key(coarse, offset), std::move(row)); }
+
+ private:
+  // The offset's bits (-0.0 and 0.0 apart), and the measure.
+  static std::pair<bool, std::uint64_t> key(bool coarse, double offset) {
+    std::uint64_t bits;
+    std::memcpy(&bits, &offset, sizeof bits);
+    return {coarse, bits};
+  }
+  std::map<std::pair<bool, std::uint64_t>, Row> rows_;
+};
+
 Curve evaluate(const TimingFit& fit, const TimingConfig& timing, const std::vector<double>& offsets,
-               bool coarse, double cap) {
+               bool coarse, double cap, RowCache& cache) {
   Curve curve;
   curve.timing = timing;
   curve.offsets = offsets;
@@ -64,16 +93,25 @@ Curve evaluate(const TimingFit& fit, const TimingConfig& timing, const std::vect
   std::vector<char> scored;
   std::vector<PlacedScan> placed;  // reused from offset to offset
   for (double offset : offsets) {
-    TimingConfig shifted = timing;
-    shifted.time_offset = offset;
-    const std::vector<double> distances = fit.pairDistances(shifted, scored, coarse, placed);
-    std::vector<double> row(curve.members.size());
-    for (std::size_t m = 0; m < curve.members.size(); ++m) {
-      const std::size_t p = curve.members[m];
-      curve.scored[m] = curve.scored[m] && scored[p];
-      row[m] = std::isfinite(distances[p]) ? distances[p] : cap;
+    const RowCache::Row* row = cache.find(coarse, offset);
+    if (!row) {
+      TimingConfig shifted = timing;
+      shifted.time_offset = offset;
+      const std::vector<double> distances = fit.pairDistances(shifted, scored, coarse, placed);
+      RowCache::Row made;
+      made.distances.resize(curve.members.size());
+      made.scored.resize(curve.members.size());
+      for (std::size_t m = 0; m < curve.members.size(); ++m) {
+        const std::size_t p = curve.members[m];
+        made.scored[m] = scored[p];
+        made.distances[m] = std::isfinite(distances[p]) ? distances[p] : cap;
+      }
+      cache.add(coarse, offset, std::move(made));
+      row = cache.find(coarse, offset);
     }
-    curve.pairs.push_back(std::move(row));
+    for (std::size_t m = 0; m < curve.members.size(); ++m)
+      curve.scored[m] = curve.scored[m] && row->scored[m];
+    curve.pairs.push_back(row->distances);
   }
   finish(curve, cap);
   return curve;
@@ -168,8 +206,10 @@ double depthOf(const std::vector<double>& values) {
 /// and takes the minimum over all of it (a flat stretch near the stamp can hold a spurious minimum
 /// while the valley lies further out); the curve kept is the window's alone when the minimum lies
 /// inside it, off its edge (as a search of the window alone gives), else the whole one.
+/// `cache`: the rows scored so far under `timing` on this fit (a search that falls back to the window
+/// alone rescores none).
 Candidate search(const TimingFit& fit, const TimingConfig& timing, double period, double center, double range,
-                 double whole, const TimingFitConfig& config) {
+                 double whole, const TimingFitConfig& config, RowCache& cache) {
   Candidate candidate;
   candidate.timing = timing;
   candidate.period = period;
@@ -184,12 +224,12 @@ Candidate search(const TimingFit& fit, const TimingConfig& timing, double period
       if (offset < inner_grid.front() - 0.5 * step || offset > inner_grid.back() + 0.5 * step)
         outer_grid.push_back(offset);
     }
-    Curve inner = evaluate(fit, timing, inner_grid, true, cap);
-    Curve all = merge(inner, evaluate(fit, timing, outer_grid, true, cap), cap);
+    Curve inner = evaluate(fit, timing, inner_grid, true, cap, cache);
+    Curve all = merge(inner, evaluate(fit, timing, outer_grid, true, cap, cache), cap);
     if (4 * all.scored_pairs < inner.scored_pairs) {
       // A recording not much longer than the whole range: few pairs are placed at every offset of it,
       // and a minimum over those is no comparison. The window round the stamp alone, as before.
-      return search(fit, timing, period, center, range, range, config);
+      return search(fit, timing, period, center, range, range, config, cache);
     }
     candidate.depth = depthOf(all.mean);
     std::size_t k = 0, k_inner = 0;
@@ -208,7 +248,7 @@ Candidate search(const TimingFit& fit, const TimingConfig& timing, double period
     }
   } else {
     for (;;) {
-      candidate.coarse = evaluate(fit, timing, grid(center, candidate.range, step), true, cap);
+      candidate.coarse = evaluate(fit, timing, grid(center, candidate.range, step), true, cap, cache);
       std::size_t k = 0;
       best = minimumOf(candidate.coarse.offsets, candidate.coarse.mean, &k).first;
       candidate.on_edge = k == 0 || k + 1 == candidate.coarse.offsets.size();
@@ -223,7 +263,7 @@ Candidate search(const TimingFit& fit, const TimingConfig& timing, double period
   // at a fifth of the coarse one's distance), so the window moves on while its best lies on its edge.
   const double fine_step = std::min(config.resolution * 5.0, step / 4.0);
   for (int moves = 0; moves < 8; ++moves) {
-    candidate.fine = evaluate(fit, timing, grid(best, step, fine_step), false, config.consistency.cap);
+    candidate.fine = evaluate(fit, timing, grid(best, step, fine_step), false, config.consistency.cap, cache);
     std::tie(candidate.offset, candidate.value) =
         minimumOf(candidate.fine.offsets, candidate.fine.mean, &candidate.index);
     if (candidate.index != 0 && candidate.index + 1 != candidate.fine.offsets.size())
@@ -361,13 +401,19 @@ void TimingFit::shift(double offset) {
   // The coarse search's pairs: at most coarse_pairs, spread evenly over the recording (pairs are in
   // the order of their earlier scan).
   coarse_pairs_.assign(pairs_.size(), 0);
-  coarse_scans_.assign(scans_.size(), 0);
+  coarse_scans_.assign(scans_.size(), kLeftOut);
   const std::size_t coarse = std::min(config_.coarse_pairs, pairs_.size());
   for (std::size_t k = 0; k < coarse; ++k) {
     const std::size_t p = spreadIndex(k, coarse, pairs_.size());
     coarse_pairs_[p] = 1;
-    coarse_scans_[pairs_[p].first] = coarse_scans_[pairs_[p].second] = 1;
+    if (coarse_scans_[pairs_[p].second] == kLeftOut)
+      coarse_scans_[pairs_[p].second] = kPointsOnly;
   }
+  for (std::size_t k = 0; k < coarse; ++k)
+    coarse_scans_[pairs_[spreadIndex(k, coarse, pairs_.size())].first] = kPlaced;
+  fine_scans_.assign(scans_.size(), kPointsOnly);
+  for (const auto& pair : pairs_)
+    fine_scans_[pair.first] = kPlaced;
 }
 
 std::size_t TimingFit::turningScans() const {
@@ -376,12 +422,13 @@ std::size_t TimingFit::turningScans() const {
 }
 
 bool TimingFit::placeOne(std::size_t i, const TimingConfig& timing, ScanDeskewer& deskewer,
-                         DeskewedScan& corrected, PlacedScan& result, std::size_t stride) const {
+                         DeskewedScan& corrected, PlacedScan& result, std::size_t stride,
+                         bool indexed) const {
   const PlanarScan& scan = scans_[i];
   try {
     deskewer.deskew(scan, resolveTiming(scan, timing), mount_, motion_, corrected);
     placeCorrected(corrected, motion_.basePose(corrected.reference_time) + mount_,
-                   std::abs(static_cast<double>(scan.angle_increment)), stride, result);
+                   std::abs(static_cast<double>(scan.angle_increment)), stride, result, indexed);
     return true;
   } catch (const InvalidInput&) {
   } catch (const MotionUnavailable&) {
@@ -410,13 +457,14 @@ void TimingFit::place(const TimingConfig& timing, std::vector<PlacedScan>& place
     placed_scans->assign(scans_.size(), 0);
   for (std::size_t i = 0; i < scans_.size(); ++i) {
     bool ok = false;
-    if (needed && !(*needed)[i]) {
+    if (needed && (*needed)[i] == kLeftOut) {
       placed[i].clear();
     } else {
       // The coarse search places at most about 360 returns a scan (every k-th): it only has to find the
       // valley.
       const std::size_t stride = coarse ? (scans_[i].ranges.size() + 359) / 360 : 1;
-      ok = placeOne(i, timing, deskewer, corrected, placed[i], std::max<std::size_t>(1, stride));
+      ok = placeOne(i, timing, deskewer, corrected, placed[i], std::max<std::size_t>(1, stride),
+                    !needed || (*needed)[i] != kPointsOnly);
     }
     if (placed_scans)
       (*placed_scans)[i] = ok;
@@ -456,7 +504,7 @@ std::vector<double> TimingFit::pairDistances(const TimingConfig& timing) const {
 std::vector<double> TimingFit::pairDistances(const TimingConfig& timing, std::vector<char>& scored,
                                              bool coarse, std::vector<PlacedScan>& placed) const {
   std::vector<char> placed_scans;
-  place(timing, placed, &placed_scans, coarse, coarse ? &coarse_scans_ : nullptr);
+  place(timing, placed, &placed_scans, coarse, coarse ? &coarse_scans_ : &fine_scans_);
   const ConsistencyConfig& measure = coarse ? config_.coarse_consistency : config_.consistency;
   std::vector<double> distances(pairs_.size(), std::numeric_limits<double>::quiet_NaN());
   scored.assign(pairs_.size(), 0);
@@ -564,7 +612,8 @@ TimingEstimate estimateTiming(TimingFit& fit, const TimingFitConfig& config) {
     message.scan_period = estimate.period;
     message.use_scan_period = true;
     const double whole = std::max(config.max_search_range, config.search_periods * estimate.period);
-    const Candidate probe = search(fit, message, estimate.period, 0.0, whole, 0.0, config);
+    RowCache cache;
+    const Candidate probe = search(fit, message, estimate.period, 0.0, whole, 0.0, config, cache);
     estimate.curve_depth = probe.depth;
     estimate.search_range = probe.range;
     std::ostringstream why;
@@ -611,8 +660,10 @@ TimingEstimate estimateTiming(TimingFit& fit, const TimingFitConfig& config) {
         timing.beam_order = order;
         timing.scan_period = period;
         timing.use_scan_period = true;
+        RowCache cache;
         candidates.push_back(search(fit, timing, period, fit.shifted(), range(period),
-                                    second ? 0.0 : std::max(config.max_search_range, range(period)), config));
+                                    second ? 0.0 : std::max(config.max_search_range, range(period)), config,
+                                    cache));
       }
     }
     // A candidate that cannot place most scans (a sweep longer than the motion covers) is out.

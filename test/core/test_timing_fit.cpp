@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <random>
+#include <stdexcept>
 
 #include "../support/turning_drive.h"
 #include "lidar_deskew/core/consistency.h"
@@ -48,6 +49,16 @@ TEST(Consistency, PointToLineDistanceIsThePerpendicularToTheContour) {
   EXPECT_EQ(overlap, 1.0);
   EXPECT_NEAR(pairDistance(PlacedScan(1, Eigen::Vector2d(0.0, 0.3), step, far), scan, config), config.cap,
               1e-12);
+  // The moved scan assigned without its index: its points measure as before; looked up in, it throws
+  // (its bins are none of its points'); assigned again with it, it is looked up in as the first.
+  PlacedScan unindexed;
+  const auto fillMoved = [&](std::vector<Eigen::Vector2d>& points) { points = moved; };
+  unindexed.assign(1, Eigen::Vector2d(0.0, 0.02), step, fillMoved, false);
+  EXPECT_NEAR(pairDistance(unindexed, scan, config), 0.02, 1e-9);
+  EXPECT_THROW(pairDistance(scan, unindexed, config), std::logic_error);
+  unindexed.assign(1, Eigen::Vector2d(0.0, 0.02), step, fillMoved);
+  EXPECT_EQ(pairDistance(scan, unindexed, config),
+            pairDistance(scan, PlacedScan(1, Eigen::Vector2d(0.0, 0.02), step, moved), config));
   const ConsistencySummary summary = summarize({0.01, 0.03, std::nan(""), 0.02});
   EXPECT_EQ(summary.pairs, 3u);
   EXPECT_NEAR(summary.mean, 0.02, 1e-15);

@@ -28,13 +28,22 @@ class PlacedScan {
 
   /// As the constructor, in this scan's own storage (no allocation once it has held as many points and
   /// bins): the points are what `fill` appends to the emptied vector it is given. A search that places
-  /// every scan at each of hundreds of timings reuses its scans so.
+  /// every scan at each of hundreds of timings reuses its scans so. `indexed` false: the points alone,
+  /// for a scan whose points are measured against others but never looked up in (distanceToContour()
+  /// and contourHit() throw std::logic_error), without the index's cost.
   template <typename Fill>
-  void assign(TimeNs time, const Eigen::Vector2d& origin, double bearing_step, Fill fill) {
+  void assign(TimeNs time, const Eigen::Vector2d& origin, double bearing_step, Fill fill,
+              bool indexed = true) {
     checkBearingStep(bearing_step);
     points_.clear();
     fill(points_);
-    index(time, origin, bearing_step);
+    if (indexed) {
+      index(time, origin, bearing_step);
+    } else {
+      time_ = time;
+      origin_ = origin;
+    }
+    indexed_ = indexed;
   }
   /// Empties the scan (as a default-constructed one), keeping its storage for assign().
   void clear() { points_.clear(); }
@@ -64,12 +73,19 @@ class PlacedScan {
   };
   /// distanceToContour() with the nearest point and the contour's normal there.
   bool contourHit(const Eigen::Vector2d& query, double radius, ContourHit& hit) const;
+  /// distanceToContour() of every `stride`-th of `queries` (from the first): adds min(distance, cap) of
+  /// each found to `sum`, in order, and returns how many were found; the bearings a few at a time.
+  std::size_t sumDistancesToContour(const std::vector<Eigen::Vector2d>& queries, std::size_t stride,
+                                    double radius, double cap, double& sum) const;
 
  private:
   static void checkBearingStep(double bearing_step);
   // Sets time, origin and the bins of points_.
   void index(TimeNs time, const Eigen::Vector2d& origin, double bearing_step);
   std::size_t binOf(const Eigen::Vector2d& point) const;
+  // contourHit() of a query in bin `query_bin` (binOf(query)).
+  bool contourHitIn(std::size_t query_bin, const Eigen::Vector2d& query, double radius,
+                    ContourHit& hit) const;
 
   TimeNs time_ = 0;
   Eigen::Vector2d origin_ = Eigen::Vector2d::Zero();
@@ -80,6 +96,7 @@ class PlacedScan {
   std::vector<std::uint32_t> by_bin_;
   std::vector<Eigen::Vector2d> binned_;  // points_[by_bin_[k]]: the bins' points in one array
   std::vector<std::uint32_t> bin_of_;    // index()'s: each point's bin (kept for the storage)
+  bool indexed_ = true;                  // the bins above are points_'s
 };
 
 /// A corrected scan placed with `laser`, the laser's pose in the fixed frame at its reference time;
@@ -87,9 +104,9 @@ class PlacedScan {
 /// scan's |angle_increment|.
 PlacedScan placeCorrected(const DeskewedScan& corrected, const mrpt::poses::CPose3D& laser,
                           double bearing_step, std::size_t stride = 1);
-/// The same into `placed`, reusing its storage (PlacedScan::assign()).
+/// The same into `placed`, reusing its storage (PlacedScan::assign(); `indexed` as there).
 void placeCorrected(const DeskewedScan& corrected, const mrpt::poses::CPose3D& laser, double bearing_step,
-                    std::size_t stride, PlacedScan& placed);
+                    std::size_t stride, PlacedScan& placed, bool indexed = true);
 /// A raw scan placed with `laser`, the laser's pose at `time` [ns]: every return drawn as if measured
 /// then (what a consumer that does not deskew sees); every `stride`-th return kept, as placeCorrected().
 PlacedScan placeRaw(const PlanarScan& scan, const mrpt::poses::CPose3D& laser, TimeNs time,

@@ -118,10 +118,13 @@ class TimingFit {
   /// the sweep (0 for a continuous motion source): the odometry's resolution in time.
   double odometryInterval() const { return odometry_interval_; }
 
+  /// What place() makes of a scan (its `needed`): nothing, the whole, or its points only.
+  enum Need : char { kLeftOut = 0, kPlaced = 1, kPointsOnly = 2 };
   /// The scans corrected under `timing` and placed in the fixed frame (empty where the timing is not
   /// valid for a scan or motion does not cover it). `placed`, when given, gets per scan whether it was
   /// placed. `coarse`: tf's straight line between samples instead of the default interpolation.
-  /// `needed`, when given, says which scans to place (the others are left empty).
+  /// `needed`, when given, says which scans to place (kLeftOut: left empty; kPointsOnly: not to be
+  /// looked up in, PlacedScan::assign()).
   std::vector<PlacedScan> place(const TimingConfig& timing, std::vector<char>* placed = nullptr,
                                 bool coarse = false, const std::vector<char>* needed = nullptr) const;
   /// The same into `scans`, reusing its scans' storage (PlacedScan::assign()): a search that places
@@ -147,7 +150,7 @@ class TimingFit {
  private:
   // Scan i corrected under `timing` into `result`; false (`result` emptied) where it cannot be placed.
   bool placeOne(std::size_t i, const TimingConfig& timing, ScanDeskewer& deskewer, DeskewedScan& corrected,
-                PlacedScan& result, std::size_t stride = 1) const;
+                PlacedScan& result, std::size_t stride = 1, bool indexed = true) const;
 
   std::vector<PlanarScan> all_scans_;  // sorted by stamp
   std::vector<PlanarScan> scans_;      // those the motion covers under the shift
@@ -162,7 +165,9 @@ class TimingFit {
   std::vector<ScanMotion> motions_;
   std::vector<std::pair<std::size_t, std::size_t>> pairs_;
   std::vector<char> coarse_pairs_;  // [pair] scored by the coarse search
-  std::vector<char> coarse_scans_;  // [scan] in a coarse pair
+  // [scan] Need: the earlier scan of a pair is looked up in (kPlaced), the later one's points measured
+  std::vector<char> coarse_scans_;  // ... of the coarse pairs (kLeftOut: in none)
+  std::vector<char> fine_scans_;    // ... of all pairs (kPointsOnly: also in none)
 };
 
 /// Why a part of the timing could not be told (TimingEstimate::cause).
