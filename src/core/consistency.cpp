@@ -39,44 +39,21 @@ std::size_t binAt(double x, double y, double inverse_bin_width, std::size_t bins
 }
 
 /// binAt() of `count` points (every `stride`-th from `points`) at once into `bins_of`, two at a time in
-/// SSE2 lanes by fastAtan2()'s operations (the same bits; the selections as masks), the bins being
-/// fewer than 2^31.
+/// SSE2 lanes (fastAtan2()'s two-lane form: the same bits), the bins being fewer than 2^31.
 void binsOf(const Eigen::Vector2d* points, std::size_t count, std::size_t stride,
             const Eigen::Vector2d& origin, double inverse_bin_width, std::size_t bins,
             std::uint32_t* bins_of) {
   std::size_t i = 0;
 #if defined(__SSE2__)
-  const __m128d sign = _mm_set1_pd(-0.0), zero = _mm_setzero_pd();
+  const __m128d zero = _mm_setzero_pd(), pi = _mm_set1_pd(M_PI);
   const __m128d origin_x = _mm_set1_pd(origin.x()), origin_y = _mm_set1_pd(origin.y());
-  const __m128d half_pi = _mm_set1_pd(M_PI_2), pi = _mm_set1_pd(M_PI);
   const __m128d inverse = _mm_set1_pd(inverse_bin_width);
-  const auto select = [](__m128d mask, __m128d yes, __m128d no) {
-    return _mm_or_pd(_mm_and_pd(mask, yes), _mm_andnot_pd(mask, no));
-  };
-  const auto term = [](__m128d s, double c, __m128d inner) {
-    return _mm_add_pd(_mm_set1_pd(c), _mm_mul_pd(s, inner));
-  };
   for (; i + 1 < count; i += 2) {
     const __m128d first = _mm_loadu_pd(points[i * stride].data());
     const __m128d second = _mm_loadu_pd(points[(i + 1) * stride].data());
     const __m128d x = _mm_sub_pd(_mm_unpacklo_pd(first, second), origin_x);
     const __m128d y = _mm_sub_pd(_mm_unpackhi_pd(first, second), origin_y);
-    const __m128d ax = _mm_andnot_pd(sign, x), ay = _mm_andnot_pd(sign, y);
-    const __m128d high = _mm_max_pd(ay, ax);  // std::max(ax, ay): ax < ay ? ay : ax
-    const __m128d a = _mm_div_pd(_mm_min_pd(ay, ax), high);  // std::min(ax, ay): ay < ax ? ay : ax
-    const __m128d s = _mm_mul_pd(a, a);
-    __m128d r = _mm_mul_pd(s, _mm_set1_pd(-0.0040733094638858158));
-    r = _mm_add_pd(_mm_set1_pd(0.02194661103058218), r);
-    r = term(s, -0.056063176726315958, r);
-    r = term(s, 0.096562564702695933, r);
-    r = term(s, -0.1391580226062557, r);
-    r = term(s, 0.19948508985754437, r);
-    r = term(s, -0.33330106677687926, r);
-    r = _mm_mul_pd(a, term(s, 0.99999943684314718, r));
-    r = select(_mm_cmpgt_pd(ay, ax), _mm_sub_pd(half_pi, r), r);
-    r = select(_mm_cmplt_pd(x, zero), _mm_sub_pd(pi, r), r);
-    r = select(_mm_cmplt_pd(y, zero), _mm_xor_pd(sign, r), r);
-    r = _mm_andnot_pd(_mm_cmpeq_pd(high, zero), r);  // fastAtan2(0, 0) = 0
+    const __m128d r = fastAtan2(y, x);
     const __m128d scaled = _mm_mul_pd(_mm_add_pd(r, pi), inverse);
     const __m128i truncated = _mm_cvttpd_epi32(_mm_max_pd(scaled, zero));  // std::max(0.0, scaled)
     const auto wrap = [bins](int bin) {
