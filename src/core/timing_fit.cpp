@@ -65,7 +65,10 @@ class RowCache {
     const auto found = rows_.find(key(coarse, offset));
     return found == rows_.end() ? nullptr : &found->second;
   }
-  void add(bool coarse, double offset, Row row) { rows_.emplace(key(coarse, offset), std::move(row)); }
+  /// Keeps `row` as the row of `offset` (not yet kept) and returns it.
+  const Row& add(bool coarse, double offset, Row row) {
+    return rows_.emplace(key(coarse, offset), std::move(row)).first->second;
+  }
 
  private:
   // The offset's bits (-0.0 and 0.0 apart), and the measure.
@@ -106,8 +109,7 @@ Curve evaluate(const TimingFit& fit, const TimingConfig& timing, const std::vect
         made.scored[m] = scored[p];
         made.distances[m] = std::isfinite(distances[p]) ? distances[p] : cap;
       }
-      cache.add(coarse, offset, std::move(made));
-      row = cache.find(coarse, offset);
+      row = &cache.add(coarse, offset, std::move(made));
     }
     for (std::size_t m = 0; m < curve.members.size(); ++m)
       curve.scored[m] = curve.scored[m] && row->scored[m];
