@@ -215,11 +215,12 @@ TEST(TimingFit, SearchesTheWholeRangeOrSaysTheMinimumIsOnItsEdge) {
 }
 
 /// The live check fed as the node feeds it: each scan once tf covers its last beam under the
-/// configured timing, tf arriving in 20 ms samples, the waiting scan retried as tf comes. tf is the
-/// odometry `odometry` (default: the truth); `offer`: every scan is offered as a shape partner first.
-TimingCheck::Verdict checkLive(const Drive& drive, const Recording& recording, const TimingConfig& configured,
-                               const sim::Trajectory* odometry = nullptr, bool offer = false) {
-  const sim::Trajectory& tf_source = odometry ? *odometry : drive.trajectory;
+/// configured timing, tf arriving in 20 ms samples, the waiting scan retried as tf comes. tf is
+/// `tf_source` (the drive's truth, or an odometry); `offer`: every scan is offered as a shape partner
+/// first; of the scans, only every `every`-th from `phase` is checked (as the node's CPU budget lets some).
+TimingCheck::Verdict checkLive(const sim::Trajectory& tf_source, const Recording& recording,
+                               const TimingConfig& configured, bool offer = false, std::size_t every = 1,
+                               std::size_t phase = 0) {
   TimingCheck check(configured);
   PoseSamples tf;
   double tf_until = -1.0;
@@ -229,11 +230,14 @@ TimingCheck::Verdict checkLive(const Drive& drive, const Recording& recording, c
       tf.add(kEpoch + secondsToNs(tf_until), mrpt::poses::CPose2D(pose.x, pose.y, pose.yaw));
     }
   };
-  for (const PlanarScan& scan : recording.scans) {
+  for (std::size_t i = 0; i < recording.scans.size(); ++i) {
+    const PlanarScan& scan = recording.scans[i];
     const BeamTiming beams = resolveTiming(scan, configured);
     tfUntil(nsToSeconds(beams.latestBeamTime() - kEpoch));  // the node corrects it now
     if (offer)
       check.offer(scan);
+    if (i % every != phase)
+      continue;
     check.add(scan, recording.mount, tf);
     for (int k = 0; k < 10 && check.waiting(); ++k) {  // later tf messages
       tfUntil(tf_until + 0.02);
@@ -249,7 +253,7 @@ TEST(TimingCheck, NamesTheBetterTimingOrSaysItFits) {
   const double sweep = 359.0 / 360.0 / drive.lidar.rate;
   const Recording at_end = record(drive, sweep, false, 1.0);
   // Configured as ROS says, the scans stamped at the end: a better timing named.
-  const TimingCheck::Verdict wrong = checkLive(drive, at_end, TimingConfig());
+  const TimingCheck::Verdict wrong = checkLive(drive.trajectory, at_end, TimingConfig());
   EXPECT_EQ(wrong.state, TimingCheck::State::kBetter) << wrong.message;
   EXPECT_EQ(wrong.best_name, "stamp_at: end");
   EXPECT_GE(wrong.pairs, 20u);
@@ -258,14 +262,15 @@ TEST(TimingCheck, NamesTheBetterTimingOrSaysItFits) {
   // the scans wait for it, and the timing fits.
   TimingConfig end;
   end.stamp_at = StampAt::kEnd;
-  const TimingCheck::Verdict right = checkLive(drive, at_end, end);
+  const TimingCheck::Verdict right = checkLive(drive.trajectory, at_end, end);
   EXPECT_EQ(right.state, TimingCheck::State::kFits) << right.message;
   EXPECT_GE(right.pairs, 20u);
   EXPECT_GT(right.best, right.configured);
   // A base that never turns: no verdict.
   Drive straight;
   straight.trajectory = sim::PiecewiseTrajectory(sim::Pose2{-6.0, 0.0, 0.0}, {{10.0, 0.8, 0.0, 0.0}});
-  const TimingCheck::Verdict none = checkLive(straight, record(straight, 0.0, false, 1.0), TimingConfig());
+  const TimingCheck::Verdict none =
+      checkLive(straight.trajectory, record(straight, 0.0, false, 1.0), TimingConfig());
   EXPECT_EQ(none.state, TimingCheck::State::kUnknown);
   EXPECT_EQ(none.pairs, 0u);
 }
@@ -282,7 +287,7 @@ TEST(TimingCheck, SaysWhenCorrectionMakesShapesWorseThanRaw) {
   const Recording recording = record(drive, 0.0, false, 1.0, false);
   const auto check = [&](double yaw_scale) {
     const sim::NoisyOdometry odometry(drive.trajectory, -1.0, drive.duration + 1.0, 0.0, 1, yaw_scale);
-    const TimingCheck::Verdict verdict = checkLive(drive, recording, TimingConfig(), &odometry, true);
+    const TimingCheck::Verdict verdict = checkLive(odometry, recording, TimingConfig(), true);
     std::printf(
         "odometry turning %.1fx: %zu shape pairs, aligned raw %.1f mm, configured %.1f mm, best "
         "alternative %s %.1f mm; %s\n",
@@ -323,26 +328,16 @@ TEST(TimingCheck, OverReportingOdometryIsCaughtWhicheverScansAreChecked) {
                                             test_support::startStopTurns(duration));
   const sim::LidarModel lidar = sim::LidarModel::ild26tri();
   const sim::Pose2 mount{0.25, 0.05, 0.1};
-  std::vector<PlanarScan> scans;
+  Recording recording;
   for (double t = 0.1; t < duration; t += 1.0 / lidar.rate)
-    scans.push_back(sim::simulateScan(sim::World::demoRoom(), trajectory, mount, lidar, kEpoch, t).scan);
+    recording.scans.push_back(
+        sim::simulateScan(sim::World::demoRoom(), trajectory, mount, lidar, kEpoch, t).scan);
+  recording.mount = mrpt::poses::CPose3D(mount.x, mount.y, 0.0, mount.yaw, 0.0, 0.0);
   const sim::NoisyOdometry odometry(trajectory, -1.0, duration + 1.0, 0.0, 1, 5.0);
   const std::size_t every = 41;
   std::vector<double> ratios;
   for (std::size_t phase = 0; phase < every; ++phase) {
-    TimingCheck check{TimingConfig()};
-    PoseSamples tf;
-    double tf_until = -1.0;
-    for (std::size_t i = 0; i < scans.size(); ++i) {
-      for (; tf_until <= nsToSeconds(scans[i].stamp - kEpoch) + 0.27; tf_until += 0.02) {  // 2 scans ahead
-        const sim::Pose2 pose = odometry.pose(tf_until);
-        tf.add(kEpoch + secondsToNs(tf_until), mrpt::poses::CPose2D(pose.x, pose.y, pose.yaw));
-      }
-      check.offer(scans[i]);
-      if (i % every == phase)
-        check.add(scans[i], mrpt::poses::CPose3D(mount.x, mount.y, 0.0, mount.yaw, 0.0, 0.0), tf);
-    }
-    const TimingCheck::Verdict verdict = check.verdict();
+    const TimingCheck::Verdict verdict = checkLive(odometry, recording, TimingConfig(), true, every, phase);
     EXPECT_EQ(verdict.state, TimingCheck::State::kWorseThanRaw)
         << "phase " << phase << ": " << verdict.message;
     EXPECT_GE(verdict.shape_pairs, 10u) << phase;
