@@ -61,6 +61,17 @@ constexpr double kMaxStepBins = 2.0;
 constexpr double kInfinity = std::numeric_limits<double>::infinity();
 /// At most this many points' distances estimate the median (every k-th point).
 constexpr std::size_t kNoiseSampleSize = 128;
+/// The noise sample's median is selected within one of these buckets of its values (noiseBucket()).
+constexpr std::size_t kNoiseBuckets = 256;
+/// Which bucket a distance [m] (non-negative, not NaN) falls in: by its bits (non-negative doubles order as
+/// their bits do), four buckets per binade from 2^-50 m to 2^14 m, those beyond in the first or the last.
+inline std::size_t noiseBucket(double distance) {
+  std::uint64_t bits;
+  std::memcpy(&bits, &distance, sizeof bits);
+  constexpr std::uint64_t kFirst = (1023u - 50u) << 2;  // the exponent and two bits of the mantissa of 2^-50
+  const std::uint64_t key = bits >> 50;
+  return static_cast<std::size_t>(key < kFirst ? 0 : std::min<std::uint64_t>(key - kFirst, kNoiseBuckets - 1));
+}
 
 /// `angle` [rad] (finite, within a few turns) moved into [0, 2pi) without a library call.
 inline double wrapToTurn(double angle) {
@@ -754,6 +765,9 @@ LIDAR_DESKEW_AVX2_CLONES void ScanRebinner::classifyLinks() {
   const unsigned char* const candidate = candidate_.data();
   std::size_t rank = 0, take = 0, k = 0;  // candidates before `word`, the next one sampled
   bool any_nan = false;
+  std::uint32_t histogram[kNoiseBuckets] = {};  // how many residuals in each noiseBucket()
+  unsigned char bucket_of[2 * kNoiseSampleSize];  // each residual's (at most 2 kNoiseSampleSize of them)
+  std::size_t lowest = kNoiseBuckets - 1;         // the first bucket that holds one
   for (std::size_t word = 0; take < candidate_count; word += 8) {
     std::uint64_t bytes;
     std::memcpy(&bytes, candidate + word, sizeof bytes);
@@ -768,6 +782,10 @@ LIDAR_DESKEW_AVX2_CLONES void ScanRebinner::classifyLinks() {
       const double residual = std::abs(cross_[j]) / std::sqrt(length2_[j]);
       noise_sample_[k++] = residual;
       any_nan = any_nan || std::isnan(residual);
+      const std::size_t bucket = noiseBucket(residual);
+      bucket_of[k - 1] = static_cast<unsigned char>(bucket);
+      lowest = std::min(lowest, bucket);
+      ++histogram[bucket];
     }
     rank += in_word;
   }
@@ -780,10 +798,25 @@ LIDAR_DESKEW_AVX2_CLONES void ScanRebinner::classifyLinks() {
       std::nth_element(noise_sample_.begin(), middle, noise_sample_.end());
       median = *middle;
     } else {
-      const double* const sample = noise_sample_.data();
+      // The bucket that holds it (those before hold the smaller residuals, those after the larger), then
+      // the median among that bucket's residuals alone: the same value, from a few of them.
+      const std::size_t middle_rank = noise_sample_.size() / 2;
+      std::size_t bucket = lowest, before = 0;
+      for (; before + histogram[bucket] <= middle_rank; ++bucket)
+        before += histogram[bucket];
+      // (found by memchr: a few of the sample)
+      const std::size_t count = histogram[bucket];
+      noise_bucket_.resize(count);
+      double* const in_bucket = noise_bucket_.data();
+      const unsigned char* found = bucket_of;
+      for (std::size_t i = 0; i < count; ++i, ++found) {
+        found = static_cast<const unsigned char*>(
+            std::memchr(found, static_cast<int>(bucket), noise_sample_.size() - static_cast<std::size_t>(found - bucket_of)));
+        in_bucket[i] = noise_sample_[static_cast<std::size_t>(found - bucket_of)];
+      }
       median = detail::kthSmallest(
-          noise_sample_.size(), noise_sample_.size() / 2, [sample](std::size_t i) { return sample[i]; },
-          noise_select_, noise_median_);
+          count, middle_rank - before, [in_bucket](std::size_t i) { return in_bucket[i]; }, noise_select_,
+          noise_median_);
     }
   }
   flat_tolerance_ = kFlatToleranceFloor + kFlatToleranceMedians * median;

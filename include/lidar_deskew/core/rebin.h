@@ -225,6 +225,7 @@ class ScanRebinner {
   std::vector<double> corner_x_, corner_y_;  // [m] the corner of a kCorner link
   std::vector<double> noise_sample_;         // [m] scratch for the noise estimate
   std::vector<double> noise_select_;         // scratch for its median
+  std::vector<double> noise_bucket_;         // scratch: the sample's residuals in its median's bucket
   double noise_median_ = NAN;                // [m] of the last scan: the next one's first pivot
   std::vector<std::size_t> ends_;            // points where a contour ends (or a lone return)
   double flat_tolerance_ = 0.0;              // [m] of the last scan
