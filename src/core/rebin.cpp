@@ -63,8 +63,9 @@ constexpr double kInfinity = std::numeric_limits<double>::infinity();
 constexpr std::size_t kNoiseSampleSize = 128;
 /// The noise sample's median is selected within one of these buckets of its values (noiseBucket()).
 constexpr std::size_t kNoiseBuckets = 256;
-/// Which bucket a distance [m] (non-negative, not NaN) falls in: by its bits (non-negative doubles order as
-/// their bits do), four buckets per binade from 2^-50 m to 2^14 m, those beyond in the first or the last.
+/// Which bucket a distance [m] (non-negative) falls in: by its bits (non-negative doubles order as
+/// their bits do), four buckets per binade from 2^-50 m to 2^14 m, those beyond in the first or the last
+/// (+inf and NaN in the last).
 inline std::size_t noiseBucket(double distance) {
   std::uint64_t bits;
   std::memcpy(&bits, &distance, sizeof bits);
@@ -764,7 +765,6 @@ LIDAR_DESKEW_AVX2_CLONES void ScanRebinner::classifyLinks() {
   // word, or finds a word of 8 candidates' k-th directly.
   const unsigned char* const candidate = candidate_.data();
   std::size_t rank = 0, take = 0, k = 0;  // candidates before `word`, the next one sampled
-  bool any_nan = false;
   std::uint32_t histogram[kNoiseBuckets] = {};  // how many residuals in each noiseBucket()
   unsigned char bucket_of[2 * kNoiseSampleSize];  // each residual's (at most 2 kNoiseSampleSize of them)
   std::size_t lowest = kNoiseBuckets - 1;         // the first bucket that holds one
@@ -781,7 +781,6 @@ LIDAR_DESKEW_AVX2_CLONES void ScanRebinner::classifyLinks() {
       }
       const double residual = std::abs(cross_[j]) / std::sqrt(length2_[j]);
       noise_sample_[k++] = residual;
-      any_nan = any_nan || std::isnan(residual);
       const std::size_t bucket = noiseBucket(residual);
       bucket_of[k - 1] = static_cast<unsigned char>(bucket);
       lowest = std::min(lowest, bucket);
@@ -789,6 +788,9 @@ LIDAR_DESKEW_AVX2_CLONES void ScanRebinner::classifyLinks() {
     }
     rank += in_word;
   }
+  // (a NaN residual, 0/0, falls in the last bucket: looked for only when that bucket holds any)
+  const bool any_nan = histogram[kNoiseBuckets - 1] > 0 &&
+                       std::any_of(noise_sample_.begin(), noise_sample_.end(), [](double r) { return std::isnan(r); });
   // The median: what nth_element puts in the middle, the same value found without its branches (from
   // the last scan's, as the first pivot) unless a residual is NaN (0/0), which the selection does not order.
   double median = 0.0;
