@@ -733,7 +733,9 @@ LIDAR_DESKEW_AVX2_CLONES void ScanRebinner::readPoints(const Points& points, con
   for (std::size_t j = 1; j + 1 < n; ++j) {  // (length2 >= +0: its bits are 0 only for 0)
     const unsigned char nonzero =
         static_cast<unsigned char>((bitCast<std::uint64_t>(length2[j]) + kMaxInt64) >> 63);
-    line[j] = has_next[j - 1] & has_next[j] & nonzero;
+    const unsigned char is_line = has_next[j - 1] & has_next[j] & nonzero;
+    line[j] = is_line;
+    cross_product[j] = is_line ? cross_product[j] : kInfinity;
   }
   std::size_t count = 0;
   for (std::size_t j = 1; j + 1 < n; ++j) {
@@ -741,8 +743,6 @@ LIDAR_DESKEW_AVX2_CLONES void ScanRebinner::readPoints(const Points& points, con
     candidate[j] = is_candidate;
     count += is_candidate;
   }
-  for (std::size_t j = 1; j + 1 < n; ++j)
-    cross_product[j] = line[j] ? cross_product[j] : kInfinity;
   cross_product[0] = cross_product[n - 1] = kInfinity;
   length2[0] = length2[n - 1] = 0.0;
   candidate[0] = candidate[n - 1] = 0;
