@@ -195,10 +195,12 @@ inline bool isReturn(double x, double y, double z) {
 /// return" for Ouster and others) in the cloud's order into `prepared` (points, byte offsets and, by
 /// the value of their time field of type TimeType, their firings; void: not read). kAdjacentXYZ: y and
 /// z follow x (every driver's layout: their offsets are constants of the loop); kOrganized: the cloud is
-/// organized (height above 1: `grouper` keeps its columns).
+/// organized (height above 1: `grouper` keeps its columns). Also built for AVX2 (as
+/// writeReturnsAndRanges).
 template <typename T, typename TimeType, bool kAdjacentXYZ, bool kOrganized>
-void readReturns(const sensor_msgs::PointCloud2& cloud, const Coordinates& xyz, std::uint32_t time_offset,
-                 PreparedCloud& prepared, FiringGrouper& grouper) {
+LIDAR_DESKEW_AVX2_CLONES void readReturns(const sensor_msgs::PointCloud2& cloud, const Coordinates& xyz,
+                                          std::uint32_t time_offset, PreparedCloud& prepared,
+                                          FiringGrouper& grouper) {
   const std::size_t count = static_cast<std::size_t>(cloud.width) * cloud.height;
   prepared.points.resize(count);
   prepared.byte_offsets.resize(count);
