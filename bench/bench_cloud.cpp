@@ -9,6 +9,8 @@
 // Prints Google Benchmark's table with ns_per_point. Run: bench/run.sh cloud (pins to one core).
 #include <benchmark/benchmark.h>
 
+#include <cstdlib>
+
 #include "lidar_deskew/ros/cloud_processor.h"
 #include "lidar_deskew/ros/conversions.h"
 #include "lidar_deskew/ros/tf_feed.h"
@@ -42,6 +44,13 @@ struct Fixture {
   double points = 0.0;
 };
 
+// A fixed iteration count (callgrind: instructions per cloud over exactly so many), else Google
+// Benchmark's own.
+void fixedIterations(benchmark::internal::Benchmark* benchmark) {
+  if (const char* const fixed = std::getenv("LIDAR_DESKEW_BENCH_ITERATIONS"))
+    benchmark->Iterations(std::atoll(fixed));
+}
+
 Fixture& fixture() {
   static Fixture instance;
   return instance;
@@ -62,7 +71,7 @@ void BM_CloudCore(benchmark::State& state) {
   state.counters["ns_per_point"] = benchmark::Counter(
       f.points, benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
 }
-BENCHMARK(BM_CloudCore)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_CloudCore)->Unit(benchmark::kMillisecond)->Apply(fixedIterations);
 
 // The same points through the per-point-times entry (deskewPoints: every point with its own offset,
 // runs of one time found by the core).
@@ -86,7 +95,7 @@ void BM_CloudCorePerPointTimes(benchmark::State& state) {
   state.counters["ns_per_point"] = benchmark::Counter(
       f.points, benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
 }
-BENCHMARK(BM_CloudCorePerPointTimes)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_CloudCorePerPointTimes)->Unit(benchmark::kMillisecond)->Apply(fixedIterations);
 
 void BM_CloudNodeletPath(benchmark::State& state) {
   Fixture& f = fixture();
@@ -100,7 +109,7 @@ void BM_CloudNodeletPath(benchmark::State& state) {
   state.counters["ns_per_point"] = benchmark::Counter(
       f.points, benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
 }
-BENCHMARK(BM_CloudNodeletPath)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_CloudNodeletPath)->Unit(benchmark::kMillisecond)->Apply(fixedIterations);
 
 // Its two halves: parse (layout, returns, time field, firings) ...
 void BM_CloudPrepare(benchmark::State& state) {
@@ -113,7 +122,7 @@ void BM_CloudPrepare(benchmark::State& state) {
   state.counters["ns_per_point"] = benchmark::Counter(
       f.points, benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
 }
-BENCHMARK(BM_CloudPrepare)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_CloudPrepare)->Unit(benchmark::kMillisecond)->Apply(fixedIterations);
 
 // ... and correct (the core) and build the output message.
 void BM_CloudCorrectAndBuild(benchmark::State& state) {
@@ -127,7 +136,7 @@ void BM_CloudCorrectAndBuild(benchmark::State& state) {
   state.counters["ns_per_point"] = benchmark::Counter(
       f.points, benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
 }
-BENCHMARK(BM_CloudCorrectAndBuild)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_CloudCorrectAndBuild)->Unit(benchmark::kMillisecond)->Apply(fixedIterations);
 
 }  // namespace
 

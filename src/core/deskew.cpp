@@ -665,8 +665,10 @@ TimeNs ScanDeskewer::beginFirings(const std::vector<Eigen::Vector3d>& points, co
   return reference_time;
 }
 
-void ScanDeskewer::correctFiringBlock(const std::vector<Eigen::Vector3d>& points, const Firings& firings,
-                                      std::size_t begin, std::size_t end, Eigen::Vector3d* out) const {
+// (also built for AVX2: the same operations in VEX forms, no FMA; 38 -> 31 instructions per point)
+LIDAR_DESKEW_AVX2_CLONES void ScanDeskewer::correctFiringBlock(const std::vector<Eigen::Vector3d>& points,
+                                                               const Firings& firings, std::size_t begin,
+                                                               std::size_t end, Eigen::Vector3d* out) const {
   // (the bounds in locals: the stores below may alias the vectors' members for the compiler, which
   // then reloads them per point)
   const std::size_t count = firings.offsets.size();
