@@ -551,27 +551,28 @@ void TwistMotion::fitCentredLines(std::size_t j, Twist& slope, std::array<bool, 
   if (!(det > 1e-30 * n * sxx))
     return;
   const double limit = lineTestLimit(1.0);
-  const Twist& y0 = means_[j - 1];
-  const Twist& y1 = means_[j];
-  const Twist& y2 = means_[j + 1];
+  // The six components at once, each lane in the scalar sums' order (the same roundings).
+  using Lanes = Eigen::Array<double, 6, 1>;
+  const Lanes y0 = means_[j - 1].array(), y1 = means_[j].array(), y2 = means_[j + 1].array();
+  Lanes sy = Lanes::Zero(), sxy = Lanes::Zero(), syy = Lanes::Zero();
+  sy += y0;
+  sxy += x[0] * y0;
+  syy += y0 * y0;
+  sy += y1;
+  sxy += x[1] * y1;
+  syy += y1 * y1;
+  sy += y2;
+  sxy += x[2] * y2;
+  syy += y2 * y2;
+  const Lanes beta = (n * sxy - sx * sy) / det;
+  const Lanes alpha = (sy - beta * sx) / n;
+  const Lanes unclamped = syy - alpha * sy - beta * sxy;
+  // std::max(0.0, v): v where 0 < v, else 0 (NaN too).
+  const Lanes rss = (unclamped > 0.0).select(unclamped, Lanes::Zero());
+  const Lanes bound = floor_.array() * floor_.array() * limit;
   for (int c = 0; c < 6; ++c) {
-    if (noisy_[static_cast<std::size_t>(c)])
-      continue;
-    double sy = 0.0, sxy = 0.0, syy = 0.0;
-    sy += y0[c];
-    sxy += x[0] * y0[c];
-    syy += y0[c] * y0[c];
-    sy += y1[c];
-    sxy += x[1] * y1[c];
-    syy += y1[c] * y1[c];
-    sy += y2[c];
-    sxy += x[2] * y2[c];
-    syy += y2[c] * y2[c];
-    const double beta = (n * sxy - sx * sy) / det;
-    const double alpha = (sy - beta * sx) / n;
-    const double rss = std::max(0.0, syy - alpha * sy - beta * sxy);
-    if (rss <= floor_[c] * floor_[c] * limit && rss < INFINITY) {
-      slope[c] = beta;
+    if (!noisy_[static_cast<std::size_t>(c)] && rss[c] <= bound[c] && rss[c] < INFINITY) {
+      slope[c] = beta[c];
       fitted[static_cast<std::size_t>(c)] = true;
     }
   }
