@@ -885,6 +885,11 @@ const MotionSource& TwistMotion::prepare(const MotionSource& raw, TimeNs begin, 
 
   Eigen::Matrix3d rotation = sample(first).rotation;
   Eigen::Vector3d translation = sample(first).translation;
+  // Where every piece keeps its interval's mean (no noisy component smoothed), a screw piece (no slope,
+  // no curvature: Omega(h) is the mean's h) ends where the mean's exponential takes it, at the next
+  // sample to rounding: the next piece starts at that sample's own pose.
+  const bool through_samples =
+      followed_ || std::none_of(noisy_.begin(), noisy_.end(), [](bool noisy) { return noisy; });
   screws_ = true;
   for (std::size_t j = first; j < last; ++j) {
     Piece& piece = pieces_.emplace_back();  // built in place
@@ -938,6 +943,11 @@ const MotionSource& TwistMotion::prepare(const MotionSource& raw, TimeNs begin, 
     piece.rotation = rotation;
     piece.translation = translation;
     // The next piece starts where this one ends.
+    if (through_samples && !piece.curved && slope.isZero()) {
+      rotation = sample(j + 1).rotation;
+      translation = sample(j + 1).translation;
+      continue;
+    }
     Eigen::Matrix3d step_rotation;
     Eigen::Vector3d step_translation;
     se3Exp(piece.omega(h), step_rotation, step_translation);
