@@ -330,7 +330,7 @@ bool TwistMotion::gatherSamples(const MotionSource& raw, TimeNs begin, TimeNs en
   for (std::size_t i = low; i < high; ++i) {
     while (cache_[kept].time < times_[i])
       ++kept;
-    samples_[i - low] = &cache_[kept];
+    samples_[i - low] = &cache_[kept++];  // the next time is later
   }
   closing_ = last - low;
   return samples_.size() >= 2;
