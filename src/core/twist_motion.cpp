@@ -178,9 +178,19 @@ void se3Exp(const Twist& xi, Eigen::Matrix3d& rotation, Eigen::Vector3d& transla
 }
 
 Twist se3Log(const Eigen::Matrix3d& rotation, const Eigen::Vector3d& translation) {
-  const Eigen::AngleAxisd angle_axis(rotation);
-  const double angle = angle_axis.angle();
-  const Eigen::Vector3d phi = angle * angle_axis.axis();
+  double angle;
+  Eigen::Vector3d phi;
+  if (rotation(0, 2) == 0.0 && rotation(1, 2) == 0.0 && rotation(2, 0) == 0.0 && rotation(2, 1) == 0.0 &&
+      rotation(2, 2) == 1.0) {
+    // A turn about z only (planar odometry, exactly): its angle from the matrix directly.
+    const double yaw = std::atan2(rotation(1, 0) - rotation(0, 1), rotation(0, 0) + rotation(1, 1));
+    angle = std::abs(yaw);
+    phi = Eigen::Vector3d(0.0, 0.0, yaw);
+  } else {
+    const Eigen::AngleAxisd angle_axis(rotation);
+    angle = angle_axis.angle();
+    phi = angle * angle_axis.axis();
+  }
   // V^-1 = I - K/2 + d K^2, d = (1 - a / (2 b)) / t^2 (-> 1/12 at 0)
   double a, b, c;
   expCoefficients(angle, a, b, c);
