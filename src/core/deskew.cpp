@@ -155,9 +155,17 @@ void KnotTrajectory::build(TimeNs origin, double span_begin, double span_end, Ti
     segment.left_translation = left.translation;
     segment.translation_step = next.translation - segment.left_translation;
     // R_k^T R_k+1 = left_k^T left_k+1: the left factor R_M^T cancels.
-    const Eigen::AngleAxisd step_rotation(Eigen::Matrix3d(segment.left_rotation.transpose() * next.rotation));
-    segment.angle = step_rotation.angle();  // in [0, pi]
-    segment.axis = segment.angle > 0.0 ? step_rotation.axis() : Eigen::Vector3d::UnitZ();
+    if (planar_) {
+      // Both turn about z only (to 1e-12): the step is its yaw, from the first column of R_k^T R_k+1.
+      const double yaw = std::atan2(segment.left_rotation.col(1).dot(next.rotation.col(0)),
+                                    segment.left_rotation.col(0).dot(next.rotation.col(0)));
+      segment.angle = std::abs(yaw);  // in [0, pi]
+      segment.axis = yaw < 0.0 ? Eigen::Vector3d(-Eigen::Vector3d::UnitZ()) : Eigen::Vector3d::UnitZ();
+    } else {
+      const Eigen::AngleAxisd step_rotation(Eigen::Matrix3d(segment.left_rotation.transpose() * next.rotation));
+      segment.angle = step_rotation.angle();  // in [0, pi]
+      segment.axis = segment.angle > 0.0 ? step_rotation.axis() : Eigen::Vector3d::UnitZ();
+    }
     const Eigen::Vector3d rotation_vector = segment.angle * segment.axis;
     segment.left_yaw_cos = segment.left_rotation(0, 0);
     segment.left_yaw_sin = segment.left_rotation(1, 0);

@@ -178,9 +178,19 @@ void se3Exp(const Twist& xi, Eigen::Matrix3d& rotation, Eigen::Vector3d& transla
 }
 
 Twist se3Log(const Eigen::Matrix3d& rotation, const Eigen::Vector3d& translation) {
-  const Eigen::AngleAxisd angle_axis(rotation);
-  const double angle = angle_axis.angle();
-  const Eigen::Vector3d phi = angle * angle_axis.axis();
+  double angle;
+  Eigen::Vector3d phi;
+  if (rotation(0, 2) == 0.0 && rotation(1, 2) == 0.0 && rotation(2, 0) == 0.0 && rotation(2, 1) == 0.0 &&
+      rotation(2, 2) == 1.0) {
+    // A turn about z only (planar odometry, exactly): its angle from the matrix directly.
+    const double yaw = std::atan2(rotation(1, 0) - rotation(0, 1), rotation(0, 0) + rotation(1, 1));
+    angle = std::abs(yaw);
+    phi = Eigen::Vector3d(0.0, 0.0, yaw);
+  } else {
+    const Eigen::AngleAxisd angle_axis(rotation);
+    angle = angle_axis.angle();
+    phi = angle * angle_axis.axis();
+  }
   // V^-1 = I - K/2 + d K^2, d = (1 - a / (2 b)) / t^2 (-> 1/12 at 0)
   double a, b, c;
   expCoefficients(angle, a, b, c);
@@ -330,7 +340,7 @@ bool TwistMotion::gatherSamples(const MotionSource& raw, TimeNs begin, TimeNs en
   for (std::size_t i = low; i < high; ++i) {
     while (cache_[kept].time < times_[i])
       ++kept;
-    samples_[i - low] = &cache_[kept];
+    samples_[i - low] = &cache_[kept++];  // the next time is later
   }
   closing_ = last - low;
   return samples_.size() >= 2;
@@ -551,27 +561,28 @@ void TwistMotion::fitCentredLines(std::size_t j, Twist& slope, std::array<bool, 
   if (!(det > 1e-30 * n * sxx))
     return;
   const double limit = lineTestLimit(1.0);
-  const Twist& y0 = means_[j - 1];
-  const Twist& y1 = means_[j];
-  const Twist& y2 = means_[j + 1];
+  // The six components at once, each lane in the scalar sums' order (the same roundings).
+  using Lanes = Eigen::Array<double, 6, 1>;
+  const Lanes y0 = means_[j - 1].array(), y1 = means_[j].array(), y2 = means_[j + 1].array();
+  Lanes sy = Lanes::Zero(), sxy = Lanes::Zero(), syy = Lanes::Zero();
+  sy += y0;
+  sxy += x[0] * y0;
+  syy += y0 * y0;
+  sy += y1;
+  sxy += x[1] * y1;
+  syy += y1 * y1;
+  sy += y2;
+  sxy += x[2] * y2;
+  syy += y2 * y2;
+  const Lanes beta = (n * sxy - sx * sy) / det;
+  const Lanes alpha = (sy - beta * sx) / n;
+  const Lanes unclamped = syy - alpha * sy - beta * sxy;
+  // std::max(0.0, v): v where 0 < v, else 0 (NaN too).
+  const Lanes rss = (unclamped > 0.0).select(unclamped, Lanes::Zero());
+  const Lanes bound = floor_.array() * floor_.array() * limit;
   for (int c = 0; c < 6; ++c) {
-    if (noisy_[static_cast<std::size_t>(c)])
-      continue;
-    double sy = 0.0, sxy = 0.0, syy = 0.0;
-    sy += y0[c];
-    sxy += x[0] * y0[c];
-    syy += y0[c] * y0[c];
-    sy += y1[c];
-    sxy += x[1] * y1[c];
-    syy += y1[c] * y1[c];
-    sy += y2[c];
-    sxy += x[2] * y2[c];
-    syy += y2[c] * y2[c];
-    const double beta = (n * sxy - sx * sy) / det;
-    const double alpha = (sy - beta * sx) / n;
-    const double rss = std::max(0.0, syy - alpha * sy - beta * sxy);
-    if (rss <= floor_[c] * floor_[c] * limit && rss < INFINITY) {
-      slope[c] = beta;
+    if (!noisy_[static_cast<std::size_t>(c)] && rss[c] <= bound[c] && rss[c] < INFINITY) {
+      slope[c] = beta[c];
       fitted[static_cast<std::size_t>(c)] = true;
     }
   }
@@ -884,6 +895,11 @@ const MotionSource& TwistMotion::prepare(const MotionSource& raw, TimeNs begin, 
 
   Eigen::Matrix3d rotation = sample(first).rotation;
   Eigen::Vector3d translation = sample(first).translation;
+  // Where every piece keeps its interval's mean (no noisy component smoothed), a screw piece (no slope,
+  // no curvature: Omega(h) is the mean's h) ends where the mean's exponential takes it, at the next
+  // sample to rounding: the next piece starts at that sample's own pose.
+  const bool through_samples =
+      followed_ || std::none_of(noisy_.begin(), noisy_.end(), [](bool noisy) { return noisy; });
   screws_ = true;
   for (std::size_t j = first; j < last; ++j) {
     Piece& piece = pieces_.emplace_back();  // built in place
@@ -937,6 +953,11 @@ const MotionSource& TwistMotion::prepare(const MotionSource& raw, TimeNs begin, 
     piece.rotation = rotation;
     piece.translation = translation;
     // The next piece starts where this one ends.
+    if (through_samples && !piece.curved && slope.isZero()) {
+      rotation = sample(j + 1).rotation;
+      translation = sample(j + 1).translation;
+      continue;
+    }
     Eigen::Matrix3d step_rotation;
     Eigen::Vector3d step_translation;
     se3Exp(piece.omega(h), step_rotation, step_translation);

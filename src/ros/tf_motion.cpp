@@ -155,7 +155,10 @@ bool OneLinkChain::answer(core::TimeNs time, geometry_msgs::Transform& out) cons
     const Sample& one = samples_[newer - 1];
     const Sample& two = samples_[newer];
     // TimeCache::interpolate: the ratio of ros::Durations' seconds.
-    const tf2Scalar ratio = durationSeconds(time - one.stamp) / durationSeconds(two.stamp - one.stamp);
+    // At one's own stamp (the fit asks there): 0 s over a positive duration, +0.
+    const tf2Scalar ratio = time == one.stamp
+                                ? tf2Scalar(0.0)
+                                : durationSeconds(time - one.stamp) / durationSeconds(two.stamp - one.stamp);
     link.translation.setInterpolate3(one.link.translation, two.link.translation, ratio);
     link.rotation = time == one.stamp ? slerpAtStart(one.link.rotation, two.link.rotation)
                                       : tf2::slerp(one.link.rotation, two.link.rotation, ratio);
