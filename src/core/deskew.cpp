@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 
 #include "pose_eigen.h"
@@ -455,6 +456,17 @@ void DeskewConfig::validate() const {
     throw InvalidInput("fit_look_ahead", "must be in [0, " + std::to_string(kFitHorizon) + "] s, got " +
                                              std::to_string(fit_look_ahead));
   }
+}
+
+float noReturnValue(const PlanarScan& scan, const DeskewedScan& corrected) {
+  // Point j is beam j while beams [0, j] all have a return; past the first beam without one, never again.
+  const DeskewedPoint* const points = corrected.points.data();
+  const auto isOwnBeam = [points](const DeskewedPoint& point) {
+    return point.beam_index == static_cast<std::size_t>(&point - points);
+  };
+  const std::size_t first = static_cast<std::size_t>(
+      std::partition_point(points, points + corrected.points.size(), isOwnBeam) - points);
+  return first < scan.ranges.size() ? scan.ranges[first] : std::numeric_limits<float>::infinity();
 }
 
 PolarPoint toPolar(const Eigen::Vector3d& position) {

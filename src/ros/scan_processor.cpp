@@ -165,7 +165,7 @@ DeskewedOutputs ScanProcessor::correct(const PreparedScan& prepared, const mrpt:
   deskewer_.deskew(prepared.scan, prepared.timing, mount, motion, corrected_);
   const core::PlanarScan& planar = prepared.scan;
   rebinner_.rebin(corrected_, {planar.angle_min, planar.angle_increment, planar.ranges.size()},
-                  core::noReturnValue(planar), rebinned_);
+                  core::noReturnValue(planar, corrected_), rebinned_);
 
   const sensor_msgs::LaserScan& input = *prepared.message;
   std_msgs::Header header = input.header;
