@@ -71,8 +71,9 @@ class CloudPointReader {
       std::uint64_t intensity_index_bits;
       std::memcpy(&intensity_index_bits, &point_->intensity, sizeof intensity_index_bits);
       const Float4 intensity_index = reinterpret_cast<Float4>(Bits2{intensity_index_bits, 0});
-      const Float4 first = __builtin_shufflevector(xyzt_float, Float4{}, 0, 1, 2, 4);          // x y z 0
-      const Float4 second = __builtin_shufflevector(intensity_index, xyzt_float, 0, 7, 1, 2);  // intensity t index 0
+      const Float4 first = __builtin_shufflevector(xyzt_float, Float4{}, 0, 1, 2, 4);  // x y z 0
+      const Float4 second =
+          __builtin_shufflevector(intensity_index, xyzt_float, 0, 7, 1, 2);  // intensity t index 0
       std::memcpy(static_cast<void*>(&out), &first, sizeof first);
       std::memcpy(reinterpret_cast<char*>(&out) + sizeof first, &second, sizeof second);
       return out;
@@ -134,8 +135,9 @@ void assignCloudPoints(const core::DeskewedPoint* points, std::size_t count, dou
 }
 
 #if defined(LIDAR_DESKEW_CLOUD_AVX2)
-static_assert(sizeof(core::DeskewedPoint) == 40 && sizeof(Eigen::Vector3d) == 24,
-              "CloudPointReader<true> reads x y z time_offset as 4 doubles, intensity and beam_index as 8 bytes");
+static_assert(
+    sizeof(core::DeskewedPoint) == 40 && sizeof(Eigen::Vector3d) == 24,
+    "CloudPointReader<true> reads x y z time_offset as 4 doubles, intensity and beam_index as 8 bytes");
 
 /// assignCloudPoints() built for AVX2, everything it calls inlined (flatten): 13 instructions a point
 /// instead of 19.

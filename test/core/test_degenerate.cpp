@@ -131,10 +131,14 @@ TEST(Degenerate, NoReturnValueFromTheCorrectedPointsIsTheFirstMiss) {
   const float inf = std::numeric_limits<float>::infinity();
   const PoseSamples samples = drivingSamples();
   const std::vector<std::pair<std::vector<float>, float>> cases = {
-      {{1.0f, 2.0f, 3.0f, 4.0f, 5.0f}, inf},         {{0.05f, 2.0f, 3.0f, 0.0f, 5.0f}, 0.05f},
-      {{1.0f, 25.0f, 3.0f, 0.0f, 5.0f}, 25.0f},      {{1.0f, 2.0f, 3.0f, 4.0f, -1.0f}, -1.0f},
-      {{1.0f, 2.0f, 3.0f, 0.0f, 0.05f, 6.0f}, 0.0f}, {{1.0f, 2.0f, 3.0f, 4.0f, 5.0f, 6.0f, 7.0f, 8.0f, inf}, inf},
-      {{0.0f, 0.01f}, 0.0f},                         {{2.0f}, inf},
+      {{1.0f, 2.0f, 3.0f, 4.0f, 5.0f}, inf},
+      {{0.05f, 2.0f, 3.0f, 0.0f, 5.0f}, 0.05f},
+      {{1.0f, 25.0f, 3.0f, 0.0f, 5.0f}, 25.0f},
+      {{1.0f, 2.0f, 3.0f, 4.0f, -1.0f}, -1.0f},
+      {{1.0f, 2.0f, 3.0f, 0.0f, 0.05f, 6.0f}, 0.0f},
+      {{1.0f, 2.0f, 3.0f, 4.0f, 5.0f, 6.0f, 7.0f, 8.0f, inf}, inf},
+      {{0.0f, 0.01f}, 0.0f},
+      {{2.0f}, inf},
       {{}, inf}};
   for (const double knot_interval : {0.005, 0.0}) {
     DeskewConfig config;
