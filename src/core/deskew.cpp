@@ -4,6 +4,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
+#include <limits>
 #include <stdexcept>
 
 #include "pose_eigen.h"
@@ -340,6 +342,78 @@ void stepRuns(const Run& a, const Run& b, const PlanarBeams& out) {
 #endif
 }
 
+/// Beams [first, end), all with a return, as points from `write` on: position (x, y, z)[beam], time offset
+/// beam * beam_period - reference_offset, intensity (0 without `intensities`), the beam's index. Four
+/// beams at a time as generic vectors (their x y z t rows transposed into the points' fields; with
+/// AVX2, one instruction per 4 lanes), the same operations per beam as one at a time; the rest alone.
+/// The beam's number as a double counted along (exact: an integer below 2^53).
+LIDAR_DESKEW_AVX2_CLONES DeskewedPoint* writeReturnRun(std::size_t first, std::size_t end,
+                                                       const double* __restrict x, const double* __restrict y,
+                                                       const double* __restrict z,
+                                                       const float* __restrict intensities,
+                                                       double beam_period, double reference_offset,
+                                                       DeskewedPoint* __restrict write) {
+  std::size_t beam = first;
+  double beam_number = static_cast<double>(beam);
+#if LIDAR_DESKEW_VECTOR_SHUFFLES
+  using Double4 = double __attribute__((vector_size(32)));
+  using Double4Unaligned = double __attribute__((vector_size(32), aligned(8), may_alias));
+  using Float4 = float __attribute__((vector_size(16)));
+  using Index4 = std::uint32_t __attribute__((vector_size(16)));
+  using Pairs2 = std::uint64_t __attribute__((vector_size(16)));
+  static_assert(sizeof(DeskewedPoint) == 40 && sizeof(Eigen::Vector3d) == 24,
+                "a point's x y z time_offset are 4 doubles, its intensity and beam_index 8 bytes");
+  if (beam + 4 <= end) {
+    Double4 numbers = {beam_number, beam_number + 1.0, beam_number + 2.0, beam_number + 3.0};
+    Index4 indices = {static_cast<std::uint32_t>(beam), static_cast<std::uint32_t>(beam + 1),
+                      static_cast<std::uint32_t>(beam + 2), static_cast<std::uint32_t>(beam + 3)};
+    for (; beam + 4 <= end; beam += 4, write += 4) {
+      Double4 xs, ys, zs;
+      std::memcpy(&xs, x + beam, sizeof xs);
+      std::memcpy(&ys, y + beam, sizeof ys);
+      std::memcpy(&zs, z + beam, sizeof zs);
+      const Double4 ts = numbers * beam_period - reference_offset;
+      const Double4 xy_even = __builtin_shufflevector(xs, ys, 0, 4, 2, 6),
+                    xy_odd = __builtin_shufflevector(xs, ys, 1, 5, 3, 7);
+      const Double4 zt_even = __builtin_shufflevector(zs, ts, 0, 4, 2, 6),
+                    zt_odd = __builtin_shufflevector(zs, ts, 1, 5, 3, 7);
+      const Double4 row0 = __builtin_shufflevector(xy_even, zt_even, 0, 1, 4, 5);
+      const Double4 row1 = __builtin_shufflevector(xy_odd, zt_odd, 0, 1, 4, 5);
+      const Double4 row2 = __builtin_shufflevector(xy_even, zt_even, 2, 3, 6, 7);
+      const Double4 row3 = __builtin_shufflevector(xy_odd, zt_odd, 2, 3, 6, 7);
+      Float4 values = {};
+      if (intensities)
+        std::memcpy(&values, intensities + beam, sizeof values);
+      const Index4 value_bits = reinterpret_cast<Index4>(values);
+      // (intensity, index) of beams 0 1 and of beams 2 3.
+      const Pairs2 pairs01 =
+          reinterpret_cast<Pairs2>(__builtin_shufflevector(value_bits, indices, 0, 4, 1, 5));
+      const Pairs2 pairs23 =
+          reinterpret_cast<Pairs2>(__builtin_shufflevector(value_bits, indices, 2, 6, 3, 7));
+      const std::uint64_t pair0 = pairs01[0], pair1 = pairs01[1], pair2 = pairs23[0], pair3 = pairs23[1];
+      *reinterpret_cast<Double4Unaligned*>(write[0].position.data()) = row0;  // x y z time_offset
+      std::memcpy(&write[0].intensity, &pair0, sizeof pair0);
+      *reinterpret_cast<Double4Unaligned*>(write[1].position.data()) = row1;  // x y z time_offset
+      std::memcpy(&write[1].intensity, &pair1, sizeof pair1);
+      *reinterpret_cast<Double4Unaligned*>(write[2].position.data()) = row2;  // x y z time_offset
+      std::memcpy(&write[2].intensity, &pair2, sizeof pair2);
+      *reinterpret_cast<Double4Unaligned*>(write[3].position.data()) = row3;  // x y z time_offset
+      std::memcpy(&write[3].intensity, &pair3, sizeof pair3);
+      numbers += 4.0;
+      indices += 4;
+    }
+    beam_number = static_cast<double>(beam);
+  }
+#endif
+  for (; beam < end; ++beam, ++write, beam_number += 1.0) {
+    write->position = Eigen::Vector3d(x[beam], y[beam], z[beam]);
+    write->time_offset = beam_number * beam_period - reference_offset;
+    write->intensity = intensities ? intensities[beam] : 0.0f;
+    write->beam_index = static_cast<std::uint32_t>(beam);
+  }
+  return write;
+}
+
 }  // namespace
 
 void KnotTrajectory::correctPlanarScan(const PlanarScan& scan, double beam_period,
@@ -425,19 +499,14 @@ void KnotTrajectory::correctPlanarScan(const PlanarScan& scan, double beam_perio
                run.offset_y);
   }
 
-  // The returns, in beam order, run by run of beams with one. The beam's number as a double counted along
-  // (exact: an integer below 2^53), not converted from size_t each time.
+  // The returns, in beam order, run by run of beams with one.
   out.points.resize(count);  // (resize() only initialises elements beyond the previous size)
   DeskewedPoint* write = out.points.data();
   for (beam = 0; beam < count; ++beam) {  // (the beam after a run has no return)
     const std::size_t run_end = beam + is_return.firstWithout(ranges + beam, count - beam);
-    double beam_number = static_cast<double>(beam);
-    for (; beam < run_end; ++beam, ++write, beam_number += 1.0) {
-      write->position = Eigen::Vector3d(point_x[beam], point_y[beam], point_z[beam]);
-      write->time_offset = beam_number * beam_period - reference_offset;
-      write->intensity = intensities ? intensities[beam] : 0.0f;
-      write->beam_index = static_cast<std::uint32_t>(beam);
-    }
+    write = writeReturnRun(beam, run_end, point_x, point_y, point_z, intensities, beam_period,
+                           reference_offset, write);
+    beam = run_end;
   }
   out.points.resize(static_cast<std::size_t>(write - out.points.data()));
 }
@@ -463,6 +532,17 @@ void DeskewConfig::validate() const {
     throw InvalidInput("fit_look_ahead", "must be in [0, " + std::to_string(kFitHorizon) + "] s, got " +
                                              std::to_string(fit_look_ahead));
   }
+}
+
+float noReturnValue(const PlanarScan& scan, const DeskewedScan& corrected) {
+  // Point j is beam j while beams [0, j] all have a return; past the first beam without one, never again.
+  const DeskewedPoint* const points = corrected.points.data();
+  const auto isOwnBeam = [points](const DeskewedPoint& point) {
+    return point.beam_index == static_cast<std::size_t>(&point - points);
+  };
+  const std::size_t first = static_cast<std::size_t>(
+      std::partition_point(points, points + corrected.points.size(), isOwnBeam) - points);
+  return first < scan.ranges.size() ? scan.ranges[first] : std::numeric_limits<float>::infinity();
 }
 
 PolarPoint toPolar(const Eigen::Vector3d& position) {

@@ -13,3 +13,11 @@
 #else
 #define LIDAR_DESKEW_AVX2_CLONES
 #endif
+
+// GCC's generic vectors with __builtin_shufflevector (GCC 12 on; Clang): in an AVX2 clone a 4-double
+// vector is one register.
+#if defined(__clang__) || (defined(__GNUC__) && __GNUC__ >= 12)
+#define LIDAR_DESKEW_VECTOR_SHUFFLES 1
+#else
+#define LIDAR_DESKEW_VECTOR_SHUFFLES 0
+#endif

@@ -3,6 +3,8 @@
 
 #include <cmath>
 #include <limits>
+#include <utility>
+#include <vector>
 
 #include "lidar_deskew/core/rebin.h"
 #include "support/truth.h"
@@ -119,6 +121,40 @@ TEST(Degenerate, NonFiniteRangesAreSkippedAndNoPointIsNaN) {
   // The four returns are lone (0.1 rad apart at 1-4 m: never one surface): each stays in its bin.
   for (std::size_t j = 0; j < 4; ++j) {
     EXPECT_NEAR(rebinned.ranges[expected_beams[j]], 1.0 + j, 1e-3);
+  }
+}
+
+// The no-return value read off the corrected points is the one the ranges give: the first beam without a
+// return (here each a different value), wherever it lies, +inf when there is none.
+TEST(Degenerate, NoReturnValueFromTheCorrectedPointsIsTheFirstMiss) {
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  const float inf = std::numeric_limits<float>::infinity();
+  const PoseSamples samples = drivingSamples();
+  const std::vector<std::pair<std::vector<float>, float>> cases = {
+      {{1.0f, 2.0f, 3.0f, 4.0f, 5.0f}, inf},
+      {{0.05f, 2.0f, 3.0f, 0.0f, 5.0f}, 0.05f},
+      {{1.0f, 25.0f, 3.0f, 0.0f, 5.0f}, 25.0f},
+      {{1.0f, 2.0f, 3.0f, 4.0f, -1.0f}, -1.0f},
+      {{1.0f, 2.0f, 3.0f, 0.0f, 0.05f, 6.0f}, 0.0f},
+      {{1.0f, 2.0f, 3.0f, 4.0f, 5.0f, 6.0f, 7.0f, 8.0f, inf}, inf},
+      {{0.0f, 0.01f}, 0.0f},
+      {{2.0f}, inf},
+      {{}, inf}};
+  for (const double knot_interval : {0.005, 0.0}) {
+    DeskewConfig config;
+    config.knot_interval = knot_interval;
+    ScanDeskewer deskewer(config);
+    for (const auto& [ranges, expected] : cases) {
+      const PlanarScan scan = smallScan(ranges);
+      DeskewedScan out;
+      deskewer.deskew(scan, resolveTiming(scan, {}), mrpt::poses::CPose3D(), samples, out);
+      EXPECT_EQ(noReturnValue(scan, out), expected) << ranges.size() << " beams";
+      EXPECT_EQ(noReturnValue(scan), expected) << ranges.size() << " beams";
+    }
+    PlanarScan scan = smallScan({1.0f, 2.0f, nan, 4.0f});
+    DeskewedScan out;
+    deskewer.deskew(scan, resolveTiming(scan, {}), mrpt::poses::CPose3D(), samples, out);
+    EXPECT_TRUE(std::isnan(noReturnValue(scan, out)));
   }
 }
 

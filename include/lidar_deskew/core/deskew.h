@@ -64,6 +64,11 @@ struct DeskewedScan {
   std::vector<DeskewedPoint> points;
 };
 
+/// noReturnValue(scan) (rebin.h) from `corrected`, the correction of `scan`: its points are the returns
+/// in beam order, so the first beam without one is the first point whose beam index is not its own
+/// position (found by bisection, without reading the ranges again).
+float noReturnValue(const PlanarScan& scan, const DeskewedScan& corrected);
+
 /// Points grouped by firing time: point i was measured at origin + offsets[of_point[i]]. A
 /// multi-line LIDAR fires a column of points at once: they share a firing, whatever their order.
 struct Firings {
