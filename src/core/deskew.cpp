@@ -357,7 +357,6 @@ LIDAR_DESKEW_AVX2_CLONES DeskewedPoint* writeReturnRun(std::size_t first, std::s
   double beam_number = static_cast<double>(beam);
 #if LIDAR_DESKEW_VECTOR_SHUFFLES
   using Double4 = double __attribute__((vector_size(32)));
-  using Double4Unaligned = double __attribute__((vector_size(32), aligned(8), may_alias));
   using Float4 = float __attribute__((vector_size(16)));
   using Index4 = std::uint32_t __attribute__((vector_size(16)));
   using Pairs2 = std::uint64_t __attribute__((vector_size(16)));
@@ -391,13 +390,13 @@ LIDAR_DESKEW_AVX2_CLONES DeskewedPoint* writeReturnRun(std::size_t first, std::s
       const Pairs2 pairs23 =
           reinterpret_cast<Pairs2>(__builtin_shufflevector(value_bits, indices, 2, 6, 3, 7));
       const std::uint64_t pair0 = pairs01[0], pair1 = pairs01[1], pair2 = pairs23[0], pair3 = pairs23[1];
-      *reinterpret_cast<Double4Unaligned*>(write[0].position.data()) = row0;  // x y z time_offset
+      std::memcpy(static_cast<void*>(&write[0]), &row0, sizeof row0);  // x y z time_offset
       std::memcpy(&write[0].intensity, &pair0, sizeof pair0);
-      *reinterpret_cast<Double4Unaligned*>(write[1].position.data()) = row1;  // x y z time_offset
+      std::memcpy(static_cast<void*>(&write[1]), &row1, sizeof row1);  // x y z time_offset
       std::memcpy(&write[1].intensity, &pair1, sizeof pair1);
-      *reinterpret_cast<Double4Unaligned*>(write[2].position.data()) = row2;  // x y z time_offset
+      std::memcpy(static_cast<void*>(&write[2]), &row2, sizeof row2);  // x y z time_offset
       std::memcpy(&write[2].intensity, &pair2, sizeof pair2);
-      *reinterpret_cast<Double4Unaligned*>(write[3].position.data()) = row3;  // x y z time_offset
+      std::memcpy(static_cast<void*>(&write[3]), &row3, sizeof row3);  // x y z time_offset
       std::memcpy(&write[3].intensity, &pair3, sizeof pair3);
       numbers += 4.0;
       indices += 4;
