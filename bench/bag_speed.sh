@@ -21,8 +21,8 @@ while [ $# -gt 0 ]; do
   shift
 done
 bash "$repo/scripts/build_workspace.sh" >/dev/null
-bin="$repo/build/ws/devel/lib/lidar_deskew"
-work="$repo/build/bag_speed"
+bin="$repo/.build/ws/devel/lib/lidar_deskew"
+work="$repo/.build/bag_speed"
 mkdir -p "$work"
 if $cloud; then
   "$bin/deskew_simulate" --cloud-scenario VLP16/high/arc --convention velodyne_last --duration "$seconds" \

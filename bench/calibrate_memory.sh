@@ -9,8 +9,8 @@ export PYTHONNOUSERSITE=1
 repo=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 [ $# -gt 0 ] || set -- 60 600
 bash "$repo/scripts/build_workspace.sh" >/dev/null
-bin="$repo/build/ws/devel/lib/lidar_deskew"
-work="$repo/build/calibrate_memory"
+bin="$repo/.build/ws/devel/lib/lidar_deskew"
+work="$repo/.build/calibrate_memory"
 mkdir -p "$work"
 printf "%10s %8s %12s %14s %10s %s\n" "recorded_s" "scans" "peak_MB" "peak_kB_per_s" "time_s" "exit"
 for seconds in "$@"; do

@@ -3,7 +3,7 @@
 # both (Release, bench/build.sh) run alternately on one core, ROUNDS rounds of 5 repetitions each, and
 # the median over every round of each side's medians, with their ratio (this tree / the other).
 #   bash bench/compare_cloud.sh [COMMIT]     (default 214e6ab, version 0.2.0; ROUNDS=3)
-# The other commit's sources are extracted (git archive) into build/bench_ref/COMMIT and built there,
+# The other commit's sources are extracted (git archive) into .build/bench_ref/COMMIT and built there,
 # with this tree's bench/build.sh when that commit has none (REF_DIR: another folder for them). Other
 # benchmarks: FILTER (a regex; default the whole path and its halves).
 set -euo pipefail
@@ -13,7 +13,7 @@ ref=${1:-214e6ab}
 rounds=${ROUNDS:-3}
 filter=${FILTER:-'^(BM_CloudNodeletPath|BM_CloudPrepare|BM_CloudCorrectAndBuild)$'}
 ours=$(bash "$repo/bench/build.sh" bench_cloud)
-ref_dir=${REF_DIR:-$repo/build/bench_ref/$ref}
+ref_dir=${REF_DIR:-$repo/.build/bench_ref/$ref}
 if [ ! -d "$ref_dir" ]; then
   mkdir -p "$ref_dir"
   git -C "$repo" archive "$ref" | tar -x -C "$ref_dir"

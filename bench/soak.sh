@@ -9,11 +9,11 @@ export PYTHONNOUSERSITE=1
 repo=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 seconds=${1:-600}
 warmup=$((seconds >= 600 ? 60 : seconds / 10))
-out="$repo/build/soak"
+out="$repo/.build/soak"
 mkdir -p "$out"
 bash "$repo/scripts/build_workspace.sh" -DCATKIN_ENABLE_TESTING=ON >/dev/null
-(cd "$repo/build/ws" && catkin_make latency_driver >/dev/null)
-set +u; source "$repo/build/ws/devel/setup.bash"; set -u
+(cd "$repo/.build/ws" && catkin_make latency_driver >/dev/null)
+set +u; source "$repo/.build/ws/devel/setup.bash"; set -u
 port=$(/usr/bin/python3 -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')
 export ROS_MASTER_URI=http://127.0.0.1:$port
 roscore -p "$port" >"$out/roscore.log" 2>&1 &
@@ -31,7 +31,7 @@ for _ in $(seq 50); do
 done
 [ -n "$manager" ] || { echo "soak: the nodelet manager did not start (see $out/launch.log)" >&2; exit 1; }
 sleep 2
-"$repo/build/ws/devel/lib/lidar_deskew/latency_driver" --seconds "$seconds" \
+"$repo/.build/ws/devel/lib/lidar_deskew/latency_driver" --seconds "$seconds" \
   --sensor UTM-30LX:utm --sensor ILD26TRI:ild >"$out/driver.log" 2>&1 &
 driver=$!
 

@@ -5,14 +5,14 @@
 #   LIDAR_DESKEW_FUZZ_TARGETS="clouds" bash fuzz/run.sh 600    (some targets only; default all three)
 # Targets: fuzz_core (the ROS-free core), fuzz_messages (LaserScan bytes through ScanProcessor) and
 # fuzz_clouds (PointCloud2s, as bytes or built field by field, through CloudProcessor).
-# The tracked corpus in fuzz/corpus/ is read, never written: new inputs go to build/fuzz/new/TARGET
-# (merge them with `FUZZER -merge=1 fuzz/corpus/TARGET build/fuzz/new/TARGET` to keep them).
-# A finding leaves its input in build/fuzz/ and makes the script exit non-zero.
+# The tracked corpus in fuzz/corpus/ is read, never written: new inputs go to .build/fuzz/new/TARGET
+# (merge them with `FUZZER -merge=1 fuzz/corpus/TARGET .build/fuzz/new/TARGET` to keep them).
+# A finding leaves its input in .build/fuzz/ and makes the script exit non-zero.
 set -euo pipefail
 export PATH=/usr/bin:/bin:$PATH
 repo=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 seconds=${1:-60}
-out="$repo/build/fuzz"
+out="$repo/.build/fuzz"
 build="$out/build"
 mkdir -p "$out"
 cmake -S "$repo" -B "$build" -DCMAKE_CXX_COMPILER=clang++ -DLIDAR_DESKEW_FUZZ=ON -DCATKIN_ENABLE_TESTING=OFF \

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Builds the Debian package build/ros-lidar-deskew_<version>-1_<arch>.deb (upstream version from
+# Builds the Debian package .build/ros-lidar-deskew_<version>-1_<arch>.deb (upstream version from
 # package.xml, Debian revision 1, arch from dpkg) for this machine's Debian, laid out like Debian's own
 # ROS packages: built with CMake for prefix /usr in catkin's binary-package mode (no setup files), so
 # the versioned libraries (SONAME .so.MAJOR.MINOR) and the CMake config go to /usr/lib/<multiarch>/,
@@ -13,7 +13,7 @@
 # -dev packages that find_package(lidar_deskew) needs, found with dpkg -S from the CMake configs of the
 # installed config's dependencies. What lintian still says, and why: README.md, "Install as a Debian
 # package" (test/check_deb.sh runs lintian).
-# The build folder build/deb/build/lidar_deskew is kept: later runs rebuild only what changed, and repackage
+# The build folder .build/deb/build/lidar_deskew is kept: later runs rebuild only what changed, and repackage
 # only when the installed files, this script or package.xml changed.
 # Usage: scripts/build_deb.sh    (prints the path of the .deb)
 set -euo pipefail
@@ -27,13 +27,13 @@ upstream_version=$(sed -n 's:.*<version>\(.*\)</version>.*:\1:p' "$repo/package.
 version=$upstream_version-1
 arch=$(dpkg --print-architecture)
 multiarch=$(dpkg-architecture -qDEB_HOST_MULTIARCH)
-work="$repo/build/deb"
-# Laid out like the catkin workspace (build/ws: src/lidar_deskew, build/lidar_deskew, devel) so that the
+work="$repo/.build/deb"
+# Laid out like the catkin workspace (.build/ws: src/lidar_deskew, build/lidar_deskew, devel) so that the
 # compiler cache serves this build the workspace's objects (scripts/compiler_cache.sh).
 build="$work/build/lidar_deskew"
 # dpkg-shlibdeps recognises the package's own libraries when the files lie in debian/<package>/
 stage="$work/pkg/debian/$package"
-deb="$repo/build/${package}_${version}_${arch}.deb"
+deb="$repo/.build/${package}_${version}_${arch}.deb"
 
 mkdir -p "$work/src"
 ln -sfn "$repo" "$work/src/lidar_deskew"
@@ -143,7 +143,7 @@ for library in "$stage/usr/lib/$multiarch"/lib*.so.*.*.*; do
 done | LC_ALL=C sort >"$stage/DEBIAN/shlibs"
 chmod 644 "$stage/DEBIAN/triggers" "$stage/DEBIAN/shlibs"
 (cd "$stage" && find usr -type f | LC_ALL=C sort | xargs md5sum) >"$stage/DEBIAN/md5sums"
-rm -f "$repo/build/${package}_"*"_$arch.deb"  # an earlier version's
+rm -f "$repo/.build/${package}_"*"_$arch.deb"  # an earlier version's
 dpkg-deb --build --root-owner-group "$stage" "$deb" >/dev/null
 echo "$contents" >"$stamp"
 echo "$deb"

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# Builds the package with catkin_make in a workspace inside the repo's ignored build/ folder
-# (build/ws/src/lidar_deskew links back to the repo) and installs it afresh to build/ws/install (an
+# Builds the package with catkin_make in a workspace inside the repo's ignored .build/ folder
+# (.build/ws/src/lidar_deskew links back to the repo) and installs it afresh to .build/ws/install (an
 # earlier install's files that the package no longer installs would linger; test/check_install.sh
 # checks what is installed and what is not).
 # Usage: scripts/build_workspace.sh [extra catkin_make arguments...]
@@ -8,7 +8,7 @@ set -euo pipefail
 export PATH=/usr/bin:/bin:$PATH
 export PYTHONNOUSERSITE=1
 repo=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd -P)
-ws="$repo/build/ws"
+ws="$repo/.build/ws"
 mkdir -p "$ws/src"
 ln -sfn "$repo" "$ws/src/lidar_deskew"
 cd "$ws"

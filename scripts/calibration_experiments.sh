@@ -9,18 +9,18 @@
 # (eval::coverageCases). About 20-35 minutes on 2 cores. Exits non-zero when a case misses a target or
 # the truth lies within 2 sigma in fewer than 90 % of the coverage recordings.
 #   bash scripts/calibration_experiments.sh [--render]
-# --render writes the page and the TSVs again from the last run's build/calibration_experiments/.
+# --render writes the page and the TSVs again from the last run's .build/calibration_experiments/.
 set -euo pipefail
 export PATH=/usr/bin:/bin:$PATH
 export PYTHONNOUSERSITE=1
 repo=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
-work="$repo/build/calibration_experiments"
+work="$repo/.build/calibration_experiments"
 status=0
 if [ "${1:-}" != "--render" ]; then
   bash "$repo/scripts/install_deps.sh" >/dev/null
   bash "$repo/scripts/build_workspace.sh" >/dev/null
-  (cd "$repo/build/ws" && catkin_make -j"${LIDAR_DESKEW_JOBS:-2}" deskew_calibration_experiments >/dev/null)
-  bin="$repo/build/ws/devel/lib/lidar_deskew"
+  (cd "$repo/.build/ws" && catkin_make -j"${LIDAR_DESKEW_JOBS:-2}" deskew_calibration_experiments >/dev/null)
+  bin="$repo/.build/ws/devel/lib/lidar_deskew"
   rm -rf "$work"
   mkdir -p "$work"
   "$bin/deskew_calibration_experiments" --directory "$work" >"$work/table.md" 2>"$work/missed.txt" || status=$?

@@ -6,7 +6,7 @@
 # floor. Then the smooth drives (deskew_simulate --list-cloud-smooth: the twist changes between tf
 # samples) at tf 10, 20 and 50 Hz, noise off, with interpolation linear and twist. The page leaves out
 # the columns that every row of a table shares (layout, clouds, sigma); the TSVs hold them. Work files
-# go to build/cloud_experiments/.
+# go to .build/cloud_experiments/.
 #   bash scripts/cloud_experiments.sh [--tf-rate HZ]   (the rate of the first tables)
 set -euo pipefail
 export PATH=/usr/bin:/bin:$PATH
@@ -17,8 +17,8 @@ if [ "${1:-}" = "--tf-rate" ]; then tf_rate=${2:?}; fi
 
 bash "$repo/scripts/install_deps.sh" >/dev/null
 bash "$repo/scripts/build_workspace.sh" >/dev/null
-bin="$repo/build/ws/devel/lib/lidar_deskew"
-work="$repo/build/cloud_experiments"
+bin="$repo/.build/ws/devel/lib/lidar_deskew"
+work="$repo/.build/cloud_experiments"
 rm -rf "$work"
 mkdir -p "$work" "$repo/results"
 

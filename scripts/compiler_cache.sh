@@ -1,7 +1,7 @@
-# Sourced by the build scripts: compiles through ccache, with one cache in build/ccache shared by the
+# Sourced by the build scripts: compiles through ccache, with one cache in .build/ccache shared by the
 # catkin workspace (scripts/build_workspace.sh), the Debian package (scripts/build_deb.sh) and the plain
 # CMake check (test/check_plain_cmake.sh). All are Release builds of the same sources with the same flags,
-# laid out alike under build/ (source through <dir>/src/lidar_deskew, objects in <dir>/build/lidar_deskew,
+# laid out alike under .build/ (source through <dir>/src/lidar_deskew, objects in <dir>/build/lidar_deskew,
 # devel space <dir>/devel): ccache makes paths relative to the repo (after resolving links), so the later
 # builds find the workspace's objects (it checks the source, every header and the flags; a hit is the
 # object the compiler made for the same input).
@@ -10,7 +10,7 @@
 # LIDAR_DESKEW_CCACHE=0 turns it off.
 compiler_cache_args=()
 if [ "${LIDAR_DESKEW_CCACHE:-1}" != 0 ] && command -v ccache >/dev/null; then
-  export CCACHE_DIR=${CCACHE_DIR:-$repo/build/ccache}
+  export CCACHE_DIR=${CCACHE_DIR:-$repo/.build/ccache}
   export CCACHE_BASEDIR=$repo
   export CCACHE_NOHASHDIR=1
   # Depend mode: on a miss, the compiler's own -MD list of headers keys the result (direct mode) instead

@@ -5,17 +5,17 @@
 #     overlapping scans agree in the odom frame, raw vs corrected;
 #  2. simulates a high-speed recording (ILD26TRI, 6 m/s and 5 rad/s, laser off-centre), reprocesses it
 #     and scores raw, corrected and laser_geometry against the truth;
-#  3. writes before/after figures (raw red, corrected green) to build/demo/.
+#  3. writes before/after figures (raw red, corrected green) to .build/demo/.
 set -euo pipefail
 export PATH=/usr/bin:/bin:$PATH
 export PYTHONNOUSERSITE=1
 repo=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 bash "$repo/scripts/install_deps.sh"
-build="$repo/build/cmake"
+build="$repo/.build/cmake"
 cmake -S "$repo" -B "$build" -DCMAKE_BUILD_TYPE=Release -DCATKIN_ENABLE_TESTING=OFF >/dev/null
 cmake --build "$build" --target deskew_bag deskew_calibrate deskew_simulate deskew_metrics -j"${LIDAR_DESKEW_JOBS:-2}" >/dev/null
 bin=$(dirname "$(find "$build" -type f -name deskew_bag -perm -u+x | head -n 1)")
-out="$repo/build/demo"
+out="$repo/.build/demo"
 mkdir -p "$out"
 
 echo "== 1. A real recording: Neato XV-11 (5 Hz, 361 beams), odometry at 5-7 Hz, fast turns"

@@ -9,11 +9,11 @@ export PATH=/usr/bin:/bin:$PATH
 export PYTHONNOUSERSITE=1
 repo=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 bash "$repo/scripts/build_workspace.sh" >/dev/null
-(cd "$repo/build/ws" && catkin_make -j"${LIDAR_DESKEW_JOBS:-2}" test_driver_conventions >/dev/null)
+(cd "$repo/.build/ws" && catkin_make -j"${LIDAR_DESKEW_JOBS:-2}" test_driver_conventions >/dev/null)
 output=$(mktemp)
 trap 'rm -f "$output" "$output.md"' EXIT
 status=0
-"$repo/build/ws/devel/lib/lidar_deskew/test_driver_conventions" >"$output" 2>&1 || status=$?
+"$repo/.build/ws/devel/lib/lidar_deskew/test_driver_conventions" >"$output" 2>&1 || status=$?
 page="$repo/docs/REAL_ROBOTS.md"
 awk -v rows="$output" '
   /<!-- driver table begin/ { print; print "| driver | first beam − stamp: truth | estimate ± 1σ | order | period used |";

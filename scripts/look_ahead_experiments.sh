@@ -8,8 +8,8 @@ set -euo pipefail
 export PATH=/usr/bin:/bin:$PATH
 export PYTHONNOUSERSITE=1
 repo=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
-bin="$repo/build/ws/devel/lib/lidar_deskew"
-work="$repo/build/look_ahead"
+bin="$repo/.build/ws/devel/lib/lidar_deskew"
+work="$repo/.build/look_ahead"
 mkdir -p "$work"
 scenarios=("$@")
 [ ${#scenarios[@]} -gt 0 ] || scenarios=(LDS-01/normal/arc LDS-01/high/arc UTM-30LX/normal/arc ILD26TRI/varying/varying ILD26TRI/normal/arc LDS-01/high/smooth)

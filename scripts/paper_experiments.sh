@@ -6,7 +6,7 @@
 # interpolation at tf 10, 20 and 50 Hz, on motion that changes between samples, and with noisy
 # odometry, and with odometry as robots produce it (--odom-rate, --odom-jitter, --odom-ticks,
 # --odom-delivery). The page shows the key rows; the TSVs hold every row. Work files go to
-# build/experiments/ (about 7 min). --odometry-timing reruns only the last table (about 1 min, with the
+# .build/experiments/ (about 7 min). --odometry-timing reruns only the last table (about 1 min, with the
 # workspace built) and puts it into the present docs/RESULTS.md.
 #   bash scripts/paper_experiments.sh [--odometry-timing]
 set -euo pipefail
@@ -20,8 +20,8 @@ if ! $only_timing; then
   bash "$repo/scripts/install_deps.sh" >/dev/null
   bash "$repo/scripts/build_workspace.sh" >/dev/null
 fi
-bin="$repo/build/ws/devel/lib/lidar_deskew"
-work="$repo/build/experiments"
+bin="$repo/.build/ws/devel/lib/lidar_deskew"
+work="$repo/.build/experiments"
 rm -rf "$work"
 mkdir -p "$work" "$repo/docs/figures" "$repo/results"
 printf 'interpolation: linear\n' > "$work/linear.yaml"

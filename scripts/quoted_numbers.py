@@ -12,7 +12,7 @@ This script runs those tools (only the runs the quoted keys need), then:
 
   /usr/bin/python3 -s scripts/quoted_numbers.py --check|--update|--list [--bin DIR] [--jobs N] [FILE...]
 
-FILE defaults to README.md and docs/*.md; --bin to the workspace's build/ws/devel/lib/lidar_deskew.
+FILE defaults to README.md and docs/*.md; --bin to the workspace's .build/ws/devel/lib/lidar_deskew.
 The runs: deskew_calibrate and deskew_bag --consistency on data/neato_xv11/test_drive.bag (the demo's
 real recording), and deskew_simulate + deskew_metrics on the paper's scenarios (tf at 50 Hz, noise off
 and on; the rows of docs/RESULTS.md's main tables). About a minute on 2 cores. No timing figure is
@@ -212,7 +212,7 @@ def main():
     mode.add_argument("--check", action="store_true")
     mode.add_argument("--update", action="store_true")
     mode.add_argument("--list", action="store_true")
-    parser.add_argument("--bin", default=os.path.join(REPO, "build", "ws", "devel", "lib", "lidar_deskew"))
+    parser.add_argument("--bin", default=os.path.join(REPO, ".build", "ws", "devel", "lib", "lidar_deskew"))
     parser.add_argument("--jobs", type=int, default=int(os.environ.get("LIDAR_DESKEW_JOBS", "2")))
     parser.add_argument("files", nargs="*")
     args = parser.parse_args()

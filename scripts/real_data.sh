@@ -15,8 +15,8 @@ export PYTHONNOUSERSITE=1
 repo=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 bash "$repo/scripts/install_deps.sh" >/dev/null
 bash "$repo/scripts/build_workspace.sh" >/dev/null
-bin="$repo/build/ws/devel/lib/lidar_deskew"
-work="$repo/build/real_data"
+bin="$repo/.build/ws/devel/lib/lidar_deskew"
+work="$repo/.build/real_data"
 rm -rf "$work"
 mkdir -p "$work"
 

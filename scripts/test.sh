@@ -13,7 +13,7 @@ bash "$repo/scripts/build_workspace.sh" "${cmake_args[@]}"
 # The tests compile through the same cache, with build_workspace.sh's arguments (catkin_make runs CMake
 # again, and regenerates, whenever they differ from its last run's).
 source "$repo/scripts/compiler_cache.sh"
-cd "$repo/build/ws"
+cd "$repo/.build/ws"
 catkin_make -j"${LIDAR_DESKEW_JOBS:-2}" tests -DCMAKE_BUILD_TYPE=Release "${compiler_cache_args[@]}" "${cmake_args[@]}" \
   >/dev/null
 cd build

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The package configures and builds with CMake directly, outside any catkin workspace, in
-# REPO/build/plain. Laid out like the workspace build/ws (src/lidar_deskew links to the repo, objects in
+# REPO/.build/plain. Laid out like the workspace .build/ws (src/lidar_deskew links to the repo, objects in
 # build/lidar_deskew, devel space devel) so that it compiles through the workspace's compiler cache
 # (scripts/compiler_cache.sh: ccache finds an object by the paths relative to the repo).
 # Usage: test/check_plain_cmake.sh SOURCE_DIR
@@ -8,7 +8,7 @@ set -euo pipefail
 export PATH=/usr/bin:/bin:$PATH
 repo=$(cd "${1:?source dir}" && pwd -P)
 source "$repo/scripts/compiler_cache.sh"
-work="$repo/build/plain"
+work="$repo/.build/plain"
 rm -rf "$work"
 mkdir -p "$work/src"
 ln -s "$repo" "$work/src/lidar_deskew"
