@@ -10,6 +10,7 @@
 
 #if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__)
 #define LIDAR_DESKEW_AVX2_CLONES __attribute__((target_clones("avx2", "default")))
+#define LIDAR_DESKEW_HAS_AVX2_CLONES 1
 #else
 #define LIDAR_DESKEW_AVX2_CLONES
 #endif

@@ -8,15 +8,12 @@
 
 #include <pcl_conversions/pcl_conversions.h>
 
-#if defined(__SSE2__)
-#include <emmintrin.h>
-#endif
-
 #include "lidar_deskew/ros/conversions.h"
+#include "../core/simd.h"  // (SSE2 intrinsics too)
 
-// toCloud()'s points by AVX2 where the CPU has it (GCC on x86-64, as the core's LIDAR_DESKEW_AVX2_CLONES);
-// generic vectors with __builtin_shufflevector need GCC 12.
-#if defined(__GNUC__) && !defined(__clang__) && __GNUC__ >= 12 && defined(__x86_64__)
+// toCloud()'s points by AVX2 where the CPU has it (where the core builds AVX2 clones: GCC on x86-64), by
+// generic vectors with __builtin_shufflevector (GCC 12 on).
+#if defined(LIDAR_DESKEW_HAS_AVX2_CLONES) && LIDAR_DESKEW_VECTOR_SHUFFLES
 #define LIDAR_DESKEW_CLOUD_AVX2 1
 #endif
 
