@@ -164,7 +164,8 @@ void KnotTrajectory::build(TimeNs origin, double span_begin, double span_end, Ti
       segment.angle = std::abs(yaw);  // in [0, pi]
       segment.axis = yaw < 0.0 ? Eigen::Vector3d(-Eigen::Vector3d::UnitZ()) : Eigen::Vector3d::UnitZ();
     } else {
-      const Eigen::AngleAxisd step_rotation(Eigen::Matrix3d(segment.left_rotation.transpose() * next.rotation));
+      const Eigen::AngleAxisd step_rotation(
+          Eigen::Matrix3d(segment.left_rotation.transpose() * next.rotation));
       segment.angle = step_rotation.angle();  // in [0, pi]
       segment.axis = segment.angle > 0.0 ? step_rotation.axis() : Eigen::Vector3d::UnitZ();
     }

@@ -71,7 +71,8 @@ inline std::size_t noiseBucket(double distance) {
   std::memcpy(&bits, &distance, sizeof bits);
   constexpr std::uint64_t kFirst = (1023u - 50u) << 2;  // the exponent and two bits of the mantissa of 2^-50
   const std::uint64_t key = bits >> 50;
-  return static_cast<std::size_t>(key < kFirst ? 0 : std::min<std::uint64_t>(key - kFirst, kNoiseBuckets - 1));
+  return static_cast<std::size_t>(key < kFirst ? 0
+                                               : std::min<std::uint64_t>(key - kFirst, kNoiseBuckets - 1));
 }
 
 /// `angle` [rad] (finite, within a few turns) moved into [0, 2pi) without a library call.
@@ -765,7 +766,7 @@ LIDAR_DESKEW_AVX2_CLONES void ScanRebinner::classifyLinks() {
   // word, or finds a word of 8 candidates' k-th directly.
   const unsigned char* const candidate = candidate_.data();
   std::size_t rank = 0, take = 0, k = 0;  // candidates before `word`, the next one sampled
-  std::uint32_t histogram[kNoiseBuckets] = {};  // how many residuals in each noiseBucket()
+  std::uint32_t histogram[kNoiseBuckets] = {};    // how many residuals in each noiseBucket()
   unsigned char bucket_of[2 * kNoiseSampleSize];  // each residual's (at most 2 kNoiseSampleSize of them)
   std::size_t lowest = kNoiseBuckets - 1;         // the first bucket that holds one
   for (std::size_t word = 0; take < candidate_count; word += 8) {
@@ -789,8 +790,9 @@ LIDAR_DESKEW_AVX2_CLONES void ScanRebinner::classifyLinks() {
     rank += in_word;
   }
   // (a NaN residual, 0/0, falls in the last bucket: looked for only when that bucket holds any)
-  const bool any_nan = histogram[kNoiseBuckets - 1] > 0 &&
-                       std::any_of(noise_sample_.begin(), noise_sample_.end(), [](double r) { return std::isnan(r); });
+  const bool any_nan =
+      histogram[kNoiseBuckets - 1] > 0 &&
+      std::any_of(noise_sample_.begin(), noise_sample_.end(), [](double r) { return std::isnan(r); });
   // The median: what nth_element puts in the middle, the same value found without its branches (from
   // the last scan's, as the first pivot) unless a residual is NaN (0/0), which the selection does not order.
   double median = 0.0;
@@ -813,7 +815,8 @@ LIDAR_DESKEW_AVX2_CLONES void ScanRebinner::classifyLinks() {
       const unsigned char* found = bucket_of;
       for (std::size_t i = 0; i < count; ++i, ++found) {
         found = static_cast<const unsigned char*>(
-            std::memchr(found, static_cast<int>(bucket), noise_sample_.size() - static_cast<std::size_t>(found - bucket_of)));
+            std::memchr(found, static_cast<int>(bucket),
+                        noise_sample_.size() - static_cast<std::size_t>(found - bucket_of)));
         in_bucket[i] = noise_sample_[static_cast<std::size_t>(found - bucket_of)];
       }
       median = detail::kthSmallest(

@@ -12,11 +12,11 @@
 #include <emmintrin.h>
 #endif
 
+#include "../core/simd.h"
 #include "lidar_deskew/ros/cloud_azimuth.h"
 #include "lidar_deskew/ros/conversions.h"
 #include "lidar_deskew/ros/range_scaling.h"
 #include "lidar_deskew/ros/scan_processor.h"
-#include "../core/simd.h"
 
 namespace lidar_deskew::ros_adapter {
 namespace {
@@ -305,9 +305,12 @@ inline __m128d squaredNorms(const Eigen::Vector3d* p) {
 /// three-operand forms of the same operations, no FMA: the same bits; 40 -> 33 instructions per
 /// return on an OS1-64 cloud).
 template <typename T, bool kAdjacentXY, typename R, bool kTime4 = false>
-LIDAR_DESKEW_AVX2_CLONES void writeReturnsAndRanges(const Coordinates& xyz, std::uint32_t range_offset, const std::uint32_t* byte_offsets,
-                           const Eigen::Vector3d* raw, const Eigen::Vector3d* corrected, std::size_t count,
-                           std::uint8_t* data, std::uint32_t time_offset = 0, std::uint32_t time_bits = 0) {
+LIDAR_DESKEW_AVX2_CLONES void writeReturnsAndRanges(const Coordinates& xyz, std::uint32_t range_offset,
+                                                    const std::uint32_t* byte_offsets,
+                                                    const Eigen::Vector3d* raw,
+                                                    const Eigen::Vector3d* corrected, std::size_t count,
+                                                    std::uint8_t* data, std::uint32_t time_offset = 0,
+                                                    std::uint32_t time_bits = 0) {
   static_assert(!kTime4 || (std::is_integral_v<R> && sizeof(R) == 4), "a time field written with 32-bit ranges only");
   const std::uint32_t x = xyz.x.offset, y = xyz.y.offset, z = xyz.z.offset;
   // x y z, and the time field when kTime4: a return's position.
